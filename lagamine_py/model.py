@@ -1,0 +1,208 @@
+"""The Model: what a deck declares, resolved to arrays, ready for the step controller.
+
+The deck builder (``lagamine_py.deck.builder``) produces a :class:`Model`; the solver
+(``lagamine_py.solver``) consumes it.  Nothing here knows about text or line numbers except
+``Where``, kept so that errors found late (a degenerate element, unrestrained DOFs) can still
+point at the deck.
+
+Conventions
+-----------
+* Nodes are stored in deck order; ``node_ids[r]`` is the deck id of row ``r`` and
+  ``coords[r] = (x, y)`` (``(r, z)`` in axisymmetry).  Everything below refers to node *rows*
+  (0-based), never to deck ids, except where a field name says ``_ids``.
+* Global DOF of node row ``r``, direction ``c`` (0 = x/r, 1 = y/z) is ``2*r + c``.
+* Element connectivity follows Abaqus CPE8/CAX8: corners counter-clockwise, then mid-sides
+  (5 between 1-2, 6 between 2-3, 7 between 3-4, 8 between 4-1).  Faces S1..S4 are
+  (1,2[,5]), (2,3[,6]), (3,4[,7]), (4,1[,8]).
+* Axisymmetric loads and forces are per radian.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Where:
+    """Position of a keyword block in the deck, for messages."""
+    file: str
+    line: int
+    keyword: str
+
+    def __str__(self) -> str:
+        return f"{self.file}:{self.line}: *{self.keyword}"
+
+
+@dataclass
+class ElementBlock:
+    """Elements of one deck type and one solid section (material)."""
+    type: str                 # registry name of the element plugin, e.g. "Q8PE"
+    ids: np.ndarray           # (e,) deck element ids
+    conn: np.ndarray          # (e, nen) node rows
+    material: str             # material name
+    thickness: float = 1.0    # plane strain out-of-plane thickness
+    elset: str = ""
+    where: Where | None = None
+
+
+@dataclass
+class Surface:
+    """Element faces: ``elements[k]`` is a deck element id, ``faces[k]`` in 1..4 (S1..S4)."""
+    name: str
+    elements: np.ndarray      # (f,) deck element ids
+    faces: np.ndarray         # (f,) face numbers 1..4
+    where: Where | None = None
+
+
+@dataclass
+class MaterialSpec:
+    name: str
+    law: str                  # registry name in "laws"
+    params: dict[str, Any]    # validated against the law's declared params
+    where: Where | None = None
+
+
+@dataclass
+class ContactLawSpec:
+    name: str
+    type: str                 # registry name in "contact_laws"
+    params: dict[str, Any]
+    where: Where | None = None
+
+
+@dataclass
+class FoundationSpec:
+    name: str
+    points: np.ndarray        # (m, 2), m odd >= 3; arcs through (0,1,2), (2,3,4), ...
+    where: Where | None = None
+
+
+@dataclass
+class ContactSpec:
+    surface: str
+    foundation: str
+    law: str
+    gauss: int = 3
+    where: Where | None = None
+
+
+@dataclass
+class Amplitude:
+    name: str
+    time: np.ndarray
+    value: np.ndarray
+
+    def __call__(self, t):
+        return np.interp(t, self.time, self.value)
+
+
+@dataclass
+class Boundary:
+    """Imposed displacement: nodes (rows), DOFs first..last (1-based, as in the deck)."""
+    target: str               # node id or nset name as written, for messages and reactions
+    nodes: np.ndarray
+    first: int
+    last: int
+    value: float
+    amplitude: str | None = None
+    where: Where | None = None
+
+
+@dataclass
+class CLoad:
+    target: str
+    nodes: np.ndarray
+    dof: int                  # 1 or 2
+    value: float              # per node
+    amplitude: str | None = None
+    where: Where | None = None
+
+
+@dataclass
+class DLoad:
+    surface: str
+    kind: str                 # "P": pressure, positive into the body, follower
+    value: float
+    amplitude: str | None = None
+    where: Where | None = None
+
+
+@dataclass
+class FoundationMotion:
+    foundation: str
+    dx: float
+    dy: float
+    amplitude: str | None = None
+    where: Where | None = None
+
+
+@dataclass
+class OutputRequest:
+    frequency: int = 1
+    fields: tuple[str, ...] = ()
+    contact: bool = True
+
+
+@dataclass
+class Step:
+    """One ``*STEP``: what it gives anew.  ``op_new`` lists the load kinds given with OP=NEW
+    ("BOUNDARY", "CLOAD", "DLOAD"); persistence is resolved by the step controller."""
+    name: str
+    nlgeom: bool = False
+    max_increments: int = 1000
+    dt0: float = 1.0
+    period: float = 1.0
+    dt_min: float = 1e-5
+    dt_max: float = 1.0
+    boundaries: list[Boundary] = field(default_factory=list)
+    cloads: list[CLoad] = field(default_factory=list)
+    dloads: list[DLoad] = field(default_factory=list)
+    motions: list[FoundationMotion] = field(default_factory=list)
+    op_new: set[str] = field(default_factory=set)
+    output: OutputRequest = field(default_factory=OutputRequest)
+    controls: dict[str, Any] = field(default_factory=dict)   # *CONTROLS values (tolerances ...)
+    where: Where | None = None
+
+
+@dataclass
+class Model:
+    name: str                                  # deck stem, used for output file names
+    heading: str = ""
+    node_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    coords: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    blocks: list[ElementBlock] = field(default_factory=list)
+    nsets: dict[str, np.ndarray] = field(default_factory=dict)      # name (upper) -> node rows
+    elsets: dict[str, np.ndarray] = field(default_factory=dict)     # name (upper) -> element ids
+    surfaces: dict[str, Surface] = field(default_factory=dict)
+    materials: dict[str, MaterialSpec] = field(default_factory=dict)
+    contact_laws: dict[str, ContactLawSpec] = field(default_factory=dict)
+    foundations: dict[str, FoundationSpec] = field(default_factory=dict)
+    contacts: list[ContactSpec] = field(default_factory=list)
+    amplitudes: dict[str, Amplitude] = field(default_factory=dict)
+    steps: list[Step] = field(default_factory=list)
+    axisymmetric: bool = False
+    parameters: dict[str, Any] = field(default_factory=dict)        # *PARAMETER values
+    checks: list[dict[str, Any]] = field(default_factory=list)      # *CHECK requests
+
+    @property
+    def ndof(self) -> int:
+        return 2 * len(self.node_ids)
+
+    def node_row(self, node_id: int) -> int:
+        return int(self._row_of[node_id])
+
+    def __post_init__(self):
+        self._row_of = {int(n): r for r, n in enumerate(self.node_ids)}
+
+    def reindex(self) -> None:
+        self._row_of = {int(n): r for r, n in enumerate(self.node_ids)}
+
+    def element_lookup(self) -> dict[int, tuple[int, int]]:
+        """deck element id -> (block index, row in block)."""
+        out = {}
+        for b, blk in enumerate(self.blocks):
+            for k, eid in enumerate(blk.ids):
+                out[int(eid)] = (b, k)
+        return out
