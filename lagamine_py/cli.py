@@ -1,0 +1,143 @@
+"""The ``lagamine-py`` command: run | check | plugins | compare | plot | sweep.
+
+Heavy modules (the solver, vtk, matplotlib) are imported inside the sub-commands so that
+``lagamine-py --help`` answers at once.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+EXIT_OK, EXIT_OTHER, EXIT_DECK, EXIT_DIVERGED = 0, 1, 2, 3
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="lagamine-py",
+        description="2D / axisymmetric large-strain finite elements with frictional contact "
+                    "(Godinas, Charlier & Cescotto), driven by .dat decks.")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    run = sub.add_parser("run", help="run a deck", description="Run a .dat deck and write the "
+                         "VTK series, contact and reaction tables, status and log files.")
+    run.add_argument("deck", type=Path, nargs="?", help="the .dat deck (not needed with --restart)")
+    run.add_argument("-o", "--output", type=Path, help="output directory (default: <deck stem>_out "
+                     "next to the current directory)")
+    run.add_argument("--restart", type=Path, metavar="OUT",
+                     help="resume the run whose output directory is OUT from its last converged increment")
+    run.add_argument("--solver", choices=("AUTO", "SPLU", "PARDISO"),
+                     help="sparse linear solver (overrides the deck's *CONTROLS SOLVER)")
+    run.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+
+    chk = sub.add_parser("check", help="parse and validate a deck without running it")
+    chk.add_argument("deck", type=Path)
+
+    sub.add_parser("plugins", help="list installed elements, laws, contact laws, writers and solvers "
+                   "with their parameters")
+
+    cmp_ = sub.add_parser("compare", help="compare a run with an archived reference")
+    cmp_.add_argument("run", type=Path)
+    cmp_.add_argument("ref", type=Path)
+    cmp_.add_argument("--tol", action="append", default=[], metavar="QTY=REL[,ABS]",
+                      help="tolerance override per quantity, e.g. --tol p=1e-6,1e-3")
+
+    plot = sub.add_parser("plot", help="PNG charts of a run (p and tau along the interface, forces, mesh)")
+    plot.add_argument("run", type=Path)
+    plot.add_argument("-o", "--output", type=Path, help="directory for the PNG files (default RUN/plots)")
+
+    sweep = sub.add_parser("sweep", help="run a deck over a grid of *PARAMETER values")
+    sweep.add_argument("deck", type=Path)
+    sweep.add_argument("--set", action="append", default=[], metavar="NAME=v1,v2,...", dest="sets")
+    sweep.add_argument("-o", "--output", type=Path, required=True)
+    sweep.add_argument("-j", "--jobs", type=int, default=1)
+    sweep.add_argument("--scheduler", help="address of a dask.distributed scheduler")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    handler = {"run": _cmd_run, "check": _cmd_check, "plugins": _cmd_plugins,
+               "compare": _cmd_compare, "plot": _cmd_plot, "sweep": _cmd_sweep}[args.command]
+    try:
+        return handler(args)
+    except KeyboardInterrupt:
+        print("lagamine-py: interrupted", file=sys.stderr)
+        return EXIT_OTHER
+
+
+def _load(deck: Path):
+    """Load a deck; on a deck error print it and return None."""
+    from .deck import DeckError, load_deck
+    try:
+        return load_deck(deck)
+    except DeckError as exc:
+        print(f"lagamine-py: the deck has errors; nothing was run:\n{exc}", file=sys.stderr)
+        return None
+
+
+def _cmd_check(args) -> int:
+    model = _load(args.deck)
+    if model is None:
+        return EXIT_DECK
+    print(f"{args.deck}: OK ({len(model.node_ids)} nodes, "
+          f"{sum(len(b.ids) for b in model.blocks)} elements, {len(model.steps)} steps)")
+    return EXIT_OK
+
+
+def _cmd_run(args) -> int:
+    from .solver import run
+    from .solver.restart import restart_deck
+
+    if args.restart is not None:
+        outdir = args.restart
+        deck = args.deck or restart_deck(outdir)
+        if deck is None:
+            print(f"lagamine-py: {outdir} holds no restart data", file=sys.stderr)
+            return EXIT_OTHER
+    elif args.deck is None:
+        print("lagamine-py run: give a DECK, or --restart OUT", file=sys.stderr)
+        return EXIT_DECK
+    else:
+        deck = args.deck
+        outdir = args.output or Path(f"{Path(deck).stem}_out")
+    model = _load(Path(deck))
+    if model is None:
+        return EXIT_DECK
+    if args.solver:
+        for step in model.steps:
+            step.controls["SOLVER"] = args.solver
+    outcome = run(model, outdir, restart=args.restart is not None, deck_path=Path(deck),
+                  progress=not args.quiet)
+    stream = sys.stdout if outcome.status == EXIT_OK else sys.stderr
+    print(f"lagamine-py: {outcome.message}", file=stream)
+    return outcome.status
+
+
+def _cmd_plugins(args) -> int:
+    from .registry import REGISTRY, KINDS, broken_plugins
+    for kind in KINDS:
+        print(f"{kind}:")
+        for entry in REGISTRY.entries(kind):
+            doc = (entry.cls.__doc__ or "").strip().splitlines()
+            print(f"  {entry.name}  ({entry.origin}){'  - ' + doc[0] if doc else ''}")
+            for p in entry.cls.params:
+                print(f"      {p.describe()}")
+    for msg in broken_plugins():
+        print(f"warning: {msg}", file=sys.stderr)
+    return EXIT_OK
+
+
+def _cmd_compare(args) -> int:
+    from .compare import compare_main
+    return compare_main(args.run, args.ref, args.tol)
+
+
+def _cmd_plot(args) -> int:
+    from .plot import plot_run
+    return plot_run(args.run, args.output)
+
+
+def _cmd_sweep(args) -> int:
+    from .sweep import sweep_main
+    return sweep_main(args.deck, args.sets, args.output, args.jobs, args.scheduler)

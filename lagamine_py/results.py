@@ -1,0 +1,80 @@
+"""Read a run's output directory back: tables as column arrays, VTU fields as NumPy arrays.
+
+Used by ``compare``, ``plot``, the sweep and the tests; it reads only what the output contract
+(DECKS.md) promises, so it works on archived references as well as on fresh runs.
+"""
+from __future__ import annotations
+
+import csv
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+TEXT_COLUMNS = {"status", "nset", "contact", "step_name", "failed", "reason"}
+
+
+def read_table(path: Path) -> dict[str, np.ndarray]:
+    """A CSV with a header row -> {column: array}; numeric columns as float (int for ids)."""
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    if not rows:
+        return {}
+    header, body = rows[0], rows[1:]
+    cols = {}
+    for k, name in enumerate(header):
+        values = [r[k] if k < len(r) else "" for r in body]
+        if name in TEXT_COLUMNS:
+            cols[name] = np.array(values, dtype=object)
+        else:
+            try:
+                cols[name] = np.array([float(v) for v in values])
+            except ValueError:
+                cols[name] = np.array(values, dtype=object)
+    return cols
+
+
+def read_vtu(path: Path) -> dict[str, np.ndarray]:
+    """Points, cells and every point/cell array of a VTU file."""
+    import vtk
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    reader = vtk.vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    grid = reader.GetOutput()
+    out = {"points": vtk_to_numpy(grid.GetPoints().GetData()).copy() if grid.GetPoints() else np.zeros((0, 3))}
+    for kind, data in (("point", grid.GetPointData()), ("cell", grid.GetCellData())):
+        for k in range(data.GetNumberOfArrays()):
+            arr = data.GetArray(k)
+            if arr is not None:
+                out[f"{kind}:{arr.GetName()}"] = vtk_to_numpy(arr).copy()
+    return out
+
+
+@dataclass
+class RunResults:
+    outdir: Path
+
+    def __post_init__(self):
+        self.outdir = Path(self.outdir)
+
+    def table(self, name: str) -> dict[str, np.ndarray]:
+        path = self.outdir / name
+        return read_table(path) if path.exists() else {}
+
+    def pvd(self) -> list[tuple[float, int, Path]]:
+        """(time, part, file) of every dataset listed in the PVD index."""
+        pvds = sorted(self.outdir.glob("*.pvd"))
+        if not pvds:
+            return []
+        root = ET.parse(pvds[0]).getroot()
+        return [(float(d.get("timestep")), int(d.get("part", 0)), self.outdir / d.get("file"))
+                for d in root.iter("DataSet")]
+
+    def body_files(self) -> list[tuple[float, Path]]:
+        return [(t, f) for t, part, f in self.pvd() if part == 0]
+
+    def body(self, index: int = -1) -> dict[str, np.ndarray]:
+        return read_vtu(self.body_files()[index][1])

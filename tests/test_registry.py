@@ -1,0 +1,58 @@
+"""The plugin registry: declared parameters, validation messages, discovery of built-ins."""
+import pytest
+
+from lagamine_py.registry import REGISTRY, Param, ParamError, Registry, validate_params
+
+
+class _Law:
+    params = (
+        Param("E", float, bounds=(0.0, None), doc="Young's modulus"),
+        Param("NU", float, 0.3, bounds=(-0.999, 0.4999)),
+        Param("SUBSTEPS", int, 1, bounds=(1, None), choices=("AUTO",)),
+        Param("MODE", str, "A", choices=("A", "B")),
+        Param("LS", bool, False),
+    )
+
+
+def test_validate_converts_and_fills_defaults():
+    out = validate_params(_Law, {"e": "2.1D5", "substeps": "auto", "LS": "yes"})
+    assert out == {"E": 2.1e5, "NU": 0.3, "SUBSTEPS": "AUTO", "MODE": "A", "LS": True}
+
+
+@pytest.mark.parametrize("given, fragment", [
+    ({"EE": "1"}, "unknown parameter EE (did you mean E?)"),
+    ({}, "missing required parameter E"),
+    ({"E": "-1"}, "E = -1 is below its lower bound 0"),
+    ({"E": "1", "NU": "0.6"}, "NU = 0.6 is above its upper bound 0.4999"),
+    ({"E": "x"}, "E expects a number, got 'x'"),
+    ({"E": "1", "SUBSTEPS": "2.5"}, "SUBSTEPS expects an integer"),
+    ({"E": "1", "MODE": "C"}, "MODE must be one of A, B"),
+    ({"E": "nan"}, "E must be finite"),
+])
+def test_validate_reports_each_problem_by_name(given, fragment):
+    with pytest.raises(ParamError, match=None) as info:
+        validate_params(_Law, given)
+    assert fragment in str(info.value)
+
+
+def test_registry_refuses_undeclared_parameters_and_name_clashes():
+    reg = Registry()
+
+    class NoParams:
+        pass
+
+    with pytest.raises(TypeError, match="must declare"):
+        reg.add("laws", "X", NoParams)
+    reg.add("laws", "X", _Law, "first")
+    reg.add("laws", "x", _Law, "first")            # same class again: idempotent
+    other = type("Other", (), {"params": ()})
+    with pytest.raises(ValueError, match="clashes"):
+        reg.add("laws", "X", other, "second")
+
+
+def test_builtins_are_registered_under_their_deck_names():
+    assert {"Q8PE", "Q8AX", "Q4PE", "Q4AX"} <= set(REGISTRY.names("elements"))
+    assert {"ELASTIC", "RAMBERG_OSGOOD"} <= set(REGISTRY.names("laws"))
+    assert "COULOMB" in REGISTRY.names("contact_laws")
+    with pytest.raises(KeyError, match="did you mean RAMBERG_OSGOOD"):
+        REGISTRY.get("laws", "RAMBERG_OSGUD")
