@@ -23,7 +23,8 @@ _BUILTIN_MODULES = {
     "elements": ("lagamine_py.elements.solid",),
     "laws": ("lagamine_py.laws.elastic", "lagamine_py.laws.ramberg_osgood"),
     "contact_laws": ("lagamine_py.laws.coulomb",),
-    "writers": ("lagamine_py.output.vtk", "lagamine_py.output.tables", "lagamine_py.output.status"),
+    "writers": ("lagamine_py.output.vtk", "lagamine_py.output.tables", "lagamine_py.output.status",
+                "lagamine_py.output.nodal"),
     "solvers": ("lagamine_py.solver.linear",),
 }
 

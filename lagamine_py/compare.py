@@ -1,0 +1,213 @@
+"""``lagamine-py compare RUN REF``: check a run against an archived reference.
+
+What is compared (the text tables of the output contract, present in both directories):
+
+==========================  ====================================  ==========================
+file                        row key                               quantities
+==========================  ====================================  ==========================
+contact.csv                 step, increment, element, gauss       p, tau, gap, slip, lambda, status
+contact_totals.csv          step, increment, contact              P, T
+reactions.csv               step, increment, nset                 RF1, RF2
+displacements.csv           step, node                            u1, u2
+==========================  ====================================  ==========================
+
+A value passes when ``|run - ref| <= max(rel * |ref|, abs)``; ``abs`` defaults to ``rel`` times the
+largest magnitude of that quantity in the reference (an absolute floor near zero, as MOOSE's csvdiff
+does).  When the two runs did not take the same increments, run values are interpolated linearly in
+time within each step onto the reference times, and the report says so.  Exit status 0 when every
+quantity is within tolerance, 1 otherwise (also when files, steps or points do not match).
+"""
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .results import read_table
+
+# quantity -> (relative tolerance, absolute floor or None for rel * max|ref|)
+DEFAULT_TOL: dict[str, tuple[float, float | None]] = {
+    "p": (1e-6, None), "tau": (1e-6, None), "gap": (1e-6, None), "slip": (1e-6, None),
+    "lambda": (1e-6, None), "P": (1e-6, None), "T": (1e-6, None),
+    "RF1": (1e-6, None), "RF2": (1e-6, None), "u1": (1e-6, None), "u2": (1e-6, None),
+}
+
+TABLES = (
+    ("contact.csv", ("element", "gauss"), ("p", "tau", "gap", "slip", "lambda"), "status"),
+    ("contact_totals.csv", ("contact",), ("P", "T"), None),
+    ("reactions.csv", ("nset",), ("RF1", "RF2"), None),
+    ("displacements.csv", ("node",), ("u1", "u2"), None),
+)
+
+
+@dataclass
+class Finding:
+    quantity: str
+    table: str
+    worst: float = 0.0            # worst |diff| / allowed (<= 1 passes)
+    diff: float = 0.0
+    allowed: float = 0.0
+    where: str = ""
+
+
+@dataclass
+class Report:
+    findings: list[Finding] = field(default_factory=list)
+    problems: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems and all(f.worst <= 1.0 for f in self.findings)
+
+    def text(self) -> str:
+        lines = []
+        lines += [f"note: {n}" for n in self.notes]
+        lines += [f"MISMATCH: {p}" for p in self.problems]
+        if self.findings:
+            lines.append(f"{'quantity':<10} {'table':<20} {'max |diff|':>12} {'allowed':>12} {'ratio':>8}  where")
+            for f in sorted(self.findings, key=lambda f: -f.worst):
+                flag = "" if f.worst <= 1.0 else "  FAIL"
+                lines.append(f"{f.quantity:<10} {f.table:<20} {f.diff:12.4e} {f.allowed:12.4e} "
+                             f"{f.worst:8.3g}  {f.where}{flag}")
+        lines.append("PASS: within tolerance" if self.ok else "FAIL: outside tolerance")
+        return "\n".join(lines)
+
+
+def parse_tolerances(items: list[str]) -> dict[str, tuple[float, float | None]]:
+    """``["p=1e-4,1e-2", "u1=1e-5"]`` -> overrides of DEFAULT_TOL; ``all=`` sets every quantity."""
+    tol = dict(DEFAULT_TOL)
+    for item in items:
+        name, _, value = item.partition("=")
+        parts = [v for v in value.split(",") if v.strip()]
+        if not name or not parts or len(parts) > 2:
+            raise ValueError(f"--tol {item!r}: expected QTY=REL[,ABS]")
+        rel = float(parts[0])
+        ab = float(parts[1]) if len(parts) == 2 else None
+        keys = list(tol) if name.strip().lower() == "all" else [name.strip()]
+        for k in keys:
+            if k not in tol:
+                raise ValueError(f"--tol {item!r}: unknown quantity {k}; known: {', '.join(DEFAULT_TOL)}")
+            tol[k] = (rel, ab)
+    return tol
+
+
+def compare_dirs(run: Path, ref: Path, tol=None) -> Report:
+    tol = tol or DEFAULT_TOL
+    rep = Report()
+    for fname, key_cols, qtys, text_col in TABLES:
+        ref_path, run_path = Path(ref) / fname, Path(run) / fname
+        if not ref_path.exists():
+            continue
+        if not run_path.exists():
+            rep.problems.append(f"{fname} is in the reference but not in the run")
+            continue
+        _compare_table(fname, read_table(run_path), read_table(ref_path), key_cols, qtys, text_col, tol, rep)
+    if not any((Path(ref) / t[0]).exists() for t in TABLES):
+        rep.problems.append(f"{ref} holds none of the compared tables")
+    return rep
+
+
+def _series(table, key_cols):
+    """Group rows by (step, key...) -> list of row indices ordered by time."""
+    groups: dict[tuple, list[int]] = {}
+    steps = table["step"].astype(int)
+    keys = [table[c] for c in key_cols]
+    for i in range(len(steps)):
+        k = (int(steps[i]),) + tuple(_norm(col[i]) for col in keys)
+        groups.setdefault(k, []).append(i)
+    return groups
+
+
+def _norm(v):
+    if isinstance(v, str):
+        return v.upper()
+    return int(v) if float(v) == int(v) else float(v)
+
+
+def _compare_table(fname, run, ref, key_cols, qtys, text_col, tol, rep):
+    for c in ("step",) + tuple(key_cols) + tuple(qtys):
+        if c not in ref:
+            rep.problems.append(f"{fname}: reference has no column {c}")
+            return
+        if c not in run:
+            rep.problems.append(f"{fname}: run has no column {c}")
+            return
+    g_run, g_ref = _series(run, key_cols), _series(ref, key_cols)
+    steps_ref = sorted({k[0] for k in g_ref})
+    steps_run = sorted({k[0] for k in g_run})
+    if steps_ref != steps_run:
+        rep.problems.append(f"{fname}: the run has steps {steps_run}, the reference {steps_ref}")
+    missing = [k for k in g_ref if k not in g_run and k[0] in steps_run]
+    extra = [k for k in g_run if k not in g_ref and k[0] in steps_ref]
+    if missing:
+        rep.problems.append(f"{fname}: {len(missing)} reference points absent from the run, e.g. "
+                            f"step {missing[0][0]} {dict(zip(key_cols, missing[0][1:]))}")
+    if extra:
+        rep.problems.append(f"{fname}: {len(extra)} run points absent from the reference, e.g. "
+                            f"step {extra[0][0]} {dict(zip(key_cols, extra[0][1:]))}")
+    has_time = "time" in ref and "time" in run
+    interpolated = False
+    findings = {q: Finding(q, fname) for q in qtys}
+    scale = {q: float(np.max(np.abs(ref[q]))) if len(ref[q]) else 0.0 for q in qtys}
+    for key, rows_ref in g_ref.items():
+        rows_run = g_run.get(key)
+        if rows_run is None:
+            continue
+        same = len(rows_run) == len(rows_ref) and (not has_time or np.allclose(
+            run["time"][rows_run], ref["time"][rows_ref], rtol=1e-12, atol=1e-14))
+        if not same:
+            if not has_time or len(rows_run) < 1:
+                rep.problems.append(f"{fname}: step {key[0]} has {len(rows_run)} rows in the run and "
+                                    f"{len(rows_ref)} in the reference, and no time to interpolate")
+                continue
+            interpolated = True
+        for q in qtys:
+            r_ref = ref[q][rows_ref].astype(float)
+            if same:
+                r_run = run[q][rows_run].astype(float)
+            else:
+                r_run = np.interp(ref["time"][rows_ref], run["time"][rows_run],
+                                  run[q][rows_run].astype(float))
+            rel, ab = tol.get(q, (1e-6, None))
+            floor = ab if ab is not None else rel * scale[q]
+            allowed = np.maximum(rel * np.abs(r_ref), floor)
+            diff = np.abs(r_run - r_ref)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(allowed > 0, diff / allowed, np.where(diff > 0, np.inf, 0.0))
+            ratio = np.where(np.isnan(r_run) != np.isnan(r_ref), np.inf, np.nan_to_num(ratio))
+            k = int(np.argmax(ratio))
+            if ratio[k] > findings[q].worst or not findings[q].where:
+                inc = int(ref["increment"][rows_ref][k]) if "increment" in ref else None
+                where = f"step {key[0]}" + (f", increment {inc}" if inc is not None else "") + \
+                        "".join(f", {c} {v}" for c, v in zip(key_cols, key[1:]))
+                findings[q] = Finding(q, fname, float(ratio[k]), float(diff[k]), float(allowed[k]), where)
+        if text_col and same and text_col in ref and text_col in run:
+            bad = np.nonzero(run[text_col][rows_run] != ref[text_col][rows_ref])[0]
+            if len(bad):
+                i = rows_ref[bad[0]]
+                rep.problems.append(f"{fname}: {text_col} differs at step {key[0]}, increment "
+                                    f"{int(ref['increment'][i])}, " + ", ".join(
+                                        f"{c} {v}" for c, v in zip(key_cols, key[1:]))
+                                    + f": run {run[text_col][rows_run[bad[0]]]}, reference {ref[text_col][i]}")
+    if interpolated:
+        rep.notes.append(f"{fname}: the run and the reference took different increments; run values "
+                         f"were interpolated linearly in time onto the reference increments")
+    rep.findings.extend(findings.values())
+
+
+def compare_main(run: Path, ref: Path, tol_items: list[str]) -> int:
+    try:
+        tol = parse_tolerances(tol_items)
+    except ValueError as exc:
+        print(f"lagamine-py compare: {exc}", file=sys.stderr)
+        return 2
+    for d in (run, ref):
+        if not Path(d).is_dir():
+            print(f"lagamine-py compare: {d} is not a directory", file=sys.stderr)
+            return 1
+    rep = compare_dirs(run, ref, tol)
+    print(rep.text())
+    return 0 if rep.ok else 1

@@ -1,0 +1,48 @@
+"""``displacements.csv``: nodal positions and displacements at the last converged increment of each step.
+
+The VTK series holds every output increment for ParaView; this table holds, as text, the state that
+references archive and ``lagamine-py compare`` checks.  The increment is kept in memory and written
+when the next step starts or the run closes, so an interrupted step still leaves its last converged
+increment on disk.
+"""
+from __future__ import annotations
+
+from ..registry import register
+from .base import IncrementResult, Writer
+
+
+@register("writers", "DISPLACEMENTS")
+class DisplacementsWriter(Writer):
+    """Nodal displacements at the end of each step (displacements.csv)."""
+
+    params = ()
+
+    def start_run(self) -> None:
+        self.outdir.mkdir(parents=True, exist_ok=True)
+        self._fh = open(self.outdir / "displacements.csv", "w")
+        self._fh.write("step,increment,time,node,x,y,u1,u2\n")
+        self._fh.flush()
+        self._pending: IncrementResult | None = None
+
+    def increment(self, result: IncrementResult) -> None:
+        if self._pending is not None and self._pending.step != result.step:
+            self._write(self._pending)
+        self._pending = result
+
+    def start_step(self, step_number, step) -> None:
+        if self._pending is not None and self._pending.step < step_number:
+            self._write(self._pending)
+            self._pending = None
+
+    def close(self, status: int, message: str) -> None:
+        if self._pending is not None:
+            self._write(self._pending)
+            self._pending = None
+        self._fh.close()
+
+    def _write(self, r: IncrementResult) -> None:
+        ids = self.model.node_ids
+        lines = [f"{r.step},{r.increment},{r.time:.17g},{int(n)},{x:.17g},{y:.17g},{u:.17g},{v:.17g}\n"
+                 for n, (x, y), (u, v) in zip(ids, r.coords0, r.u)]
+        self._fh.writelines(lines)
+        self._fh.flush()
