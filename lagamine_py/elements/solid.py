@@ -1,0 +1,361 @@
+"""Solid quadrilaterals Q8 / Q4 in plane strain and axisymmetry, small strain or NLGEOM.
+
+Array axes (see ``lagamine_py.laws.base``): ``e`` element, ``q`` Gauss point, ``a``/``b``
+element node, ``i``/``j``/``k``/``n``/``p`` spatial component (0 = x or r, 1 = y or z),
+``s``/``t`` 4-vector component [11, 22, 33, 12], ``d``/``f`` element DOF (``2 a + i``).
+
+Small strain: ``eps = B u``; the plastic strain is not stored, it is recovered as
+``eps(u_old) - eps_e`` so the state is only the law's.
+
+NLGEOM: multiplicative plasticity with the Hencky strain (Simo 1992, exponential map).
+``b_e_n = exp(2 eps_e_n)``, ``f = F_new F_old^-1``, ``b_e_trial = f b_e_n f^T``,
+``eps_e_trial = 1/2 ln b_e_trial``; the law returns the Kirchhoff stress ``tau``.  The internal
+force is ``f_a = sum G_a^T tau w det J0`` with ``G`` the spatial strain operator (hoop term
+``N_a / r`` with the current radius).  The tangent is the exact derivative: the material part
+via the derivative of the log (Daleckii-Krein divided differences) applied to
+``db = l b + b l^T``, plus the geometric part from the moving spatial gradients.
+
+Axisymmetric integrals are per radian (``r dr dz``); plane-strain ones per ``THICKNESS``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..registry import register
+from .base import Group, GroupResult, StepContext
+from .shapes import Q4_FACES, Q8_FACES, gauss_quad, quad_shape
+
+__all__ = [
+    "SolidGroup", "Q8PlaneStrain", "Q8Axisymmetric", "Q8PlaneStrainReduced",
+    "Q8AxisymmetricReduced", "Q4PlaneStrain", "Q4Axisymmetric",
+    "sym_eig2", "hencky_to_b", "log_b",
+]
+
+_Q4_XI = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
+_Q8_XI = np.concatenate([_Q4_XI, [[0, -1], [1, 0], [0, 1], [-1, 0]]])
+
+
+# --------------------------------------------------------------------------------------------
+# 2x2 symmetric tensor functions (closed form, batched over leading axes)
+
+def sym_eig2(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigen-decomposition of symmetric (..., 2, 2) tensors.
+
+    Returns ``lam`` (..., 2) with ``lam[..., 0] >= lam[..., 1]`` and ``V`` (..., 2, 2) whose
+    column ``k`` is the unit eigenvector of ``lam[..., k]``.
+    """
+    a, b, c = A[..., 0, 0], A[..., 1, 1], 0.5 * (A[..., 0, 1] + A[..., 1, 0])
+    m, h = 0.5 * (a + b), 0.5 * (a - b)
+    rho = np.hypot(h, c)
+    theta = 0.5 * np.arctan2(c, h)          # tan(2 theta) = 2c / (a - b)
+    ct, st = np.cos(theta), np.sin(theta)
+    lam = np.stack([m + rho, m - rho], axis=-1)
+    V = np.stack([np.stack([ct, -st], axis=-1), np.stack([st, ct], axis=-1)], axis=-2)
+    return lam, V
+
+
+def _spectral(lam_f: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """sum_k f(lam_k) v_k v_k^T, (..., 2, 2)."""
+    return np.einsum("...ik,...k,...jk->...ij", V, lam_f, V)
+
+
+def _vec_to_tensor2(v: np.ndarray) -> np.ndarray:
+    """In-plane part of a strain 4-vector [e11, e22, e33, g12] as a (..., 2, 2) tensor."""
+    T = np.empty(v.shape[:-1] + (2, 2))
+    T[..., 0, 0], T[..., 1, 1] = v[..., 0], v[..., 1]
+    T[..., 0, 1] = T[..., 1, 0] = 0.5 * v[..., 3]
+    return T
+
+
+def hencky_to_b(eps_e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``b = exp(2 eps_e)`` of Hencky 4-vectors (..., 4): in-plane (..., 2, 2) and b33 (...)."""
+    lam, V = sym_eig2(_vec_to_tensor2(eps_e))
+    return _spectral(np.exp(2.0 * lam), V), np.exp(2.0 * eps_e[..., 2])
+
+
+def log_b(b2: np.ndarray, derivative: bool = False):
+    """``1/2 ln b`` of symmetric positive (..., 2, 2) tensors, and optionally its derivative.
+
+    Returns ``E`` (..., 2, 2) and, if asked, ``C`` (..., 2, 2, 2, 2) with
+    ``dE_ij = C_ijmn db_mn`` for symmetric ``db`` (``C`` symmetric in ij and in mn).  The
+    derivative uses the Daleckii-Krein formula with the divided difference
+    ``(ln l1 - ln l2) / (l1 - l2) = atanh(x) / (m x)``, ``m`` the mean eigenvalue and
+    ``x = (l1 - l2) / (l1 + l2)``, whose limit 1/m covers equal eigenvalues.
+    """
+    lam, V = sym_eig2(b2)
+    E = _spectral(0.5 * np.log(lam), V)
+    if not derivative:
+        return E
+    m = 0.5 * (lam[..., 0] + lam[..., 1])
+    x = 0.5 * (lam[..., 0] - lam[..., 1]) / m
+    small = x < 1e-6
+    xs = np.where(small, 1.0, x)
+    ratio = np.where(small, 1.0 + x * x / 3.0, np.arctanh(np.minimum(xs, 1 - 1e-16)) / xs)
+    g = np.empty(lam.shape + (2,))
+    g[..., 0, 0], g[..., 1, 1] = 1.0 / lam[..., 0], 1.0 / lam[..., 1]
+    g[..., 0, 1] = g[..., 1, 0] = ratio / m
+    C = np.einsum("...kl,...ik,...jl,...mk,...nl->...ijmn", 0.5 * g, V, V, V, V)
+    C = 0.5 * (C + np.swapaxes(C, -1, -2))
+    return E, C
+
+
+def _det2(A):
+    return A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
+
+
+def _inv2(A, det=None):
+    det = _det2(A) if det is None else det
+    inv = np.empty_like(A)
+    inv[..., 0, 0], inv[..., 1, 1] = A[..., 1, 1], A[..., 0, 0]
+    inv[..., 0, 1], inv[..., 1, 0] = -A[..., 0, 1], -A[..., 1, 0]
+    return inv / np.where(det == 0.0, 1.0, det)[..., None, None]
+
+
+# --------------------------------------------------------------------------------------------
+# element group
+
+class SolidGroup(Group):
+    """A group of solid quadrilaterals of one type and one material.
+
+    Parameters
+    ----------
+    ids : (e,) deck element ids.
+    conn : (e, nen) node rows (Abaqus CPE8/CPE4 order).
+    coords0 : (n, 2) reference coordinates of all nodes.
+    law : MaterialLaw.
+    thickness : plane-strain thickness (ignored in axisymmetry: integrals are per radian).
+    """
+
+    params = ()
+    name = ""
+    nen = 8
+    axisymmetric = False
+    faces = Q8_FACES
+    ngauss = 3
+
+    # -- class-level geometry helpers ---------------------------------------------------------
+    @classmethod
+    def node_xi(cls) -> np.ndarray:
+        """(nen, 2) natural coordinates of the nodes."""
+        return _Q8_XI if cls.nen == 8 else _Q4_XI
+
+    @classmethod
+    def shape_functions(cls, pts: np.ndarray):
+        """N (q, a) and dN/dxi (q, a, 2) at natural points (q, 2)."""
+        return quad_shape(cls.nen, pts)
+
+    @classmethod
+    def gauss_rule(cls):
+        """Points (q, 2) and weights (q,) of the element's integration rule."""
+        return gauss_quad(cls.ngauss)
+
+    @classmethod
+    def min_jacobian(cls, coords: np.ndarray) -> np.ndarray:
+        """(e,) minimum det J over the Gauss points and the nodes of elements ``coords`` (e, nen, 2).
+
+        In axisymmetry an element with a node at r < 0, or a Gauss point at r <= 0, gets
+        ``-|min det J|`` (or -1 if that is 0), so that a ``> 0`` check rejects it.
+        """
+        coords = np.asarray(coords, float)
+        pts = np.concatenate([cls.gauss_rule()[0], cls.node_xi()])
+        N, dN = cls.shape_functions(pts)
+        J = np.einsum("eai,qak->eqik", coords, dN)
+        out = _det2(J).min(axis=1)
+        if cls.axisymmetric:
+            r = coords[..., 0]
+            size = np.ptp(coords.reshape(len(coords), -1), axis=1) + 1e-300
+            r_gauss = np.einsum("qa,ea->eq", N[: len(pts) - cls.nen], r)
+            bad = (r.min(axis=1) < -1e-12 * size) | (r_gauss.min(axis=1) <= 0.0)
+            out = np.where(bad, np.where(out == 0.0, -1.0, -np.abs(out)), out)
+        return out
+
+    # -- construction -------------------------------------------------------------------------
+    def __init__(self, ids, conn, coords0, law, thickness: float = 1.0):
+        self.ids = np.asarray(ids)
+        self.conn = np.asarray(conn, dtype=np.int64)
+        if self.conn.ndim != 2 or self.conn.shape[1] != self.nen:
+            raise ValueError(f"{self.name or type(self).__name__}: connectivity must be "
+                             f"(e, {self.nen}), got {self.conn.shape}")
+        self.coords0 = np.asarray(coords0, float)
+        self.law = law
+        self.thickness = float(thickness)
+        ne = len(self.conn)
+        self.dofs = (2 * self.conn[:, :, None] + np.arange(2)).reshape(ne, 2 * self.nen)
+
+        pts, w = self.gauss_rule()
+        self.N, dN = self.shape_functions(pts)               # (q, a), (q, a, 2)
+        X = self.coords0[self.conn]                           # (e, a, 2)
+        J0 = np.einsum("eai,qak->eqik", X, dN)
+        self.detJ0 = _det2(J0)                                # (e, q)
+        self.dNdX = np.einsum("qak,eqki->eqai", dN, _inv2(J0, self.detJ0))
+        self.R0 = np.einsum("qa,ea->eq", self.N, X[..., 0])
+        self.w0 = w * self.detJ0 * (self.R0 if self.axisymmetric else self.thickness)
+        self._bad0 = (self.detJ0 <= 0).any(axis=1)
+        if self.axisymmetric:
+            self._bad0 |= (self.R0 <= 0).any(axis=1)
+        self._law_keys = tuple(law.init_state((1, 1)).keys())
+
+    @property
+    def nq(self) -> int:
+        return self.N.shape[0]
+
+    def init_state(self) -> dict[str, np.ndarray]:
+        """Law state of shape (e, q, ...) plus ``stress`` (e, q, 4), the Cauchy stress."""
+        state = self.law.init_state((len(self.conn), self.nq))
+        state["stress"] = np.zeros((len(self.conn), self.nq, 4))
+        return state
+
+    def gauss_coords(self, u: np.ndarray) -> np.ndarray:
+        """(e, q, 2) positions of the Gauss points for nodal displacements ``u`` (n, 2)."""
+        return np.einsum("qa,eai->eqi", self.N, self.coords0[self.conn] + u[self.conn])
+
+    # -- kinematics ---------------------------------------------------------------------------
+    def _operator(self, dNdx: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Strain operator (e, q, s, d): rows [d/dx1, d/dx2, hoop u_r/r, shear] of ``dNdx``."""
+        ne, nq, na = dNdx.shape[:3]
+        B = np.zeros((ne, nq, 4, na, 2))
+        B[:, :, 0, :, 0] = dNdx[..., 0]
+        B[:, :, 1, :, 1] = dNdx[..., 1]
+        B[:, :, 3, :, 0] = dNdx[..., 1]
+        B[:, :, 3, :, 1] = dNdx[..., 0]
+        if self.axisymmetric:
+            B[:, :, 2, :, 0] = self.N / r[..., None]
+        return B.reshape(ne, nq, 4, 2 * na)
+
+    def _failure(self, mask: np.ndarray, what: str, state, tangent: bool) -> GroupResult:
+        ids = ", ".join(str(int(i)) for i in self.ids[mask][:20])
+        more = " ..." if mask.sum() > 20 else ""
+        nd = self.dofs.shape[1]
+        f = np.zeros((len(self.conn), nd))
+        K = np.zeros((len(self.conn), nd, nd)) if tangent else None
+        return GroupResult(f, K, state, failure=f"{what} in element(s) {ids}{more}")
+
+    # -- the element computation --------------------------------------------------------------
+    def compute(self, u_new: np.ndarray, u_old: np.ndarray, state: dict[str, np.ndarray],
+                ctx: StepContext, tangent: bool = True) -> GroupResult:
+        """Internal force f (e, 2 nen), tangent K (e, 2 nen, 2 nen) and the trial state."""
+        if self._bad0.any():
+            return self._failure(self._bad0, "non-positive reference Jacobian (or r <= 0)",
+                                 state, tangent)
+        law_state = {k: state[k] for k in self._law_keys}
+        ue_new, ue_old = u_new[self.conn], u_old[self.conn]
+        if ctx.nlgeom:
+            return self._large_strain(ue_new, ue_old, state, law_state, tangent)
+        return self._small_strain(ue_new, ue_old, state, law_state, tangent)
+
+    def _finish_law(self, ok, new_law_state, stress_cauchy, state, tangent):
+        if not np.all(ok):
+            return self._failure(~ok.all(axis=1), "return mapping failed", state, tangent)
+        new_state = dict(new_law_state)
+        new_state["stress"] = stress_cauchy
+        return new_state
+
+    def _small_strain(self, ue_new, ue_old, state, law_state, tangent):
+        ne = len(self.conn)
+        B = self._operator(self.dNdX, self.R0)
+        eps_new = np.einsum("eqsd,ed->eqs", B, ue_new.reshape(ne, -1))
+        eps_old = np.einsum("eqsd,ed->eqs", B, ue_old.reshape(ne, -1))
+        trial = eps_new - (eps_old - law_state["eps_e"])     # eps_new - eps_p_n
+        sig, D, new_law_state, ok = self.law.update(trial, law_state)
+        new_state = self._finish_law(np.asarray(ok), new_law_state, sig, state, tangent)
+        if isinstance(new_state, GroupResult):
+            return new_state
+        f = np.einsum("eqsd,eqs,eq->ed", B, sig, self.w0)
+        K = None
+        if tangent:
+            BD = np.einsum("eqsd,eqst,eq->eqdt", B, D, self.w0)
+            K = np.einsum("eqdt,eqtf->edf", BD, B)
+        return GroupResult(f, K, new_state)
+
+    def _deformation(self, ue):
+        """In-plane F (e, q, 2, 2), F33 (e, q) and the current radius (e, q) (R0 in plane strain)."""
+        F = np.eye(2) + np.einsum("eai,eqaj->eqij", ue, self.dNdX)
+        if self.axisymmetric:
+            r = self.R0 + np.einsum("qa,ea->eq", self.N, ue[..., 0])
+            return F, r / self.R0, r
+        return F, np.ones_like(self.R0), self.R0
+
+    def _large_strain(self, ue_new, ue_old, state, law_state, tangent):
+        ne, nq, na = len(self.conn), self.nq, self.nen
+        F, F33, r = self._deformation(ue_new)
+        F_old, F33_old, _ = self._deformation(ue_old)
+        det2 = _det2(F)
+        J = det2 * F33
+        bad = ((det2 <= 0) | (F33 <= 0) | (_det2(F_old) <= 0) | (F33_old <= 0)).any(axis=1)
+        if bad.any():
+            return self._failure(bad, "non-positive det F", state, tangent)
+
+        # trial elastic left Cauchy-Green tensor and its Hencky strain
+        f2 = F @ _inv2(F_old)
+        f33 = F33 / F33_old
+        bn2, bn33 = hencky_to_b(law_state["eps_e"])
+        b2 = f2 @ bn2 @ np.swapaxes(f2, -1, -2)
+        b33 = f33**2 * bn33
+        if tangent:
+            E2, C = log_b(b2, derivative=True)
+        else:
+            E2 = log_b(b2)
+        trial = np.stack([E2[..., 0, 0], E2[..., 1, 1], 0.5 * np.log(b33), 2 * E2[..., 0, 1]], -1)
+
+        tau, D, new_law_state, ok = self.law.update(trial, law_state)
+        new_state = self._finish_law(np.asarray(ok), new_law_state, tau / J[..., None],
+                                     state, tangent)
+        if isinstance(new_state, GroupResult):
+            return new_state
+
+        dNdx = np.einsum("eqak,eqki->eqai", self.dNdX, _inv2(F, det2))   # spatial gradients
+        G = self._operator(dNdx, r)
+        f = np.einsum("eqsd,eqs,eq->ed", G, tau, self.w0)
+        if not tangent:
+            return GroupResult(f, None, new_state)
+
+        # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du
+        h = np.einsum("eqbp,eqpn->eqbn", dNdx, b2)
+        dE = 2.0 * np.einsum("eqijkn,eqbn->eqijbk", C, h)              # (e, q, 2, 2, b, k)
+        M = np.zeros((ne, nq, 4, na, 2))
+        M[:, :, 0], M[:, :, 1], M[:, :, 3] = dE[:, :, 0, 0], dE[:, :, 1, 1], 2 * dE[:, :, 0, 1]
+        if self.axisymmetric:
+            M[:, :, 2, :, 0] = self.N / r[..., None]                  # d eps33 = du_r / r
+        GD = np.einsum("eqsd,eqst,eq->eqdt", G, D, self.w0)
+        K = np.einsum("eqdt,eqtf->edf", GD, M.reshape(ne, nq, 4, 2 * na))
+
+        # geometric part: d(dN_a/dx_j) = -dN_a/dx_k l_kj, d(N_a / r) = -N_a du_r / r^2
+        tau2 = _vec_to_stress2(tau)
+        T = np.einsum("eqij,eqbj->eqbi", tau2, dNdx)
+        Kg = -np.einsum("eqak,eqbi,eq->eaibk", dNdx, T, self.w0)
+        if self.axisymmetric:
+            Kg[:, :, 0, :, 0] -= np.einsum("eq,qa,qb->eab", self.w0 * tau[..., 2] / r**2,
+                                           self.N, self.N)
+        K += Kg.reshape(ne, 2 * na, 2 * na)
+        return GroupResult(f, K, new_state)
+
+
+def _vec_to_stress2(s: np.ndarray) -> np.ndarray:
+    """In-plane part of a stress 4-vector [s11, s22, s33, s12] as (..., 2, 2)."""
+    T = np.empty(s.shape[:-1] + (2, 2))
+    T[..., 0, 0], T[..., 1, 1] = s[..., 0], s[..., 1]
+    T[..., 0, 1] = T[..., 1, 0] = s[..., 3]
+    return T
+
+
+def _element(name, nen, axisymmetric, ngauss, doc):
+    cls = type(_CLASS_NAMES[name], (SolidGroup,), {
+        "name": name, "nen": nen, "axisymmetric": axisymmetric,
+        "faces": Q8_FACES if nen == 8 else Q4_FACES, "ngauss": ngauss, "__doc__": doc,
+        "__module__": __name__,
+    })
+    return register("elements", name)(cls)
+
+
+_CLASS_NAMES = {"Q8PE": "Q8PlaneStrain", "Q8AX": "Q8Axisymmetric",
+                "Q8PER": "Q8PlaneStrainReduced", "Q8AXR": "Q8AxisymmetricReduced",
+                "Q4PE": "Q4PlaneStrain", "Q4AX": "Q4Axisymmetric"}
+
+Q8PlaneStrain = _element("Q8PE", 8, False, 3, "8-node plane-strain quadrilateral, 3x3 Gauss.")
+Q8Axisymmetric = _element("Q8AX", 8, True, 3, "8-node axisymmetric quadrilateral, 3x3 Gauss.")
+Q8PlaneStrainReduced = _element("Q8PER", 8, False, 2,
+                                "8-node plane-strain quadrilateral, 2x2 reduced Gauss (CPE8R).")
+Q8AxisymmetricReduced = _element("Q8AXR", 8, True, 2,
+                                 "8-node axisymmetric quadrilateral, 2x2 reduced Gauss (CAX8R).")
+Q4PlaneStrain = _element("Q4PE", 4, False, 2, "4-node plane-strain quadrilateral, 2x2 Gauss.")
+Q4Axisymmetric = _element("Q4AX", 4, True, 2, "4-node axisymmetric quadrilateral, 2x2 Gauss.")
