@@ -1,0 +1,127 @@
+"""The status file ``<deck>.sta`` and the log ``<deck>.log``.
+
+``<deck>.sta`` is a CSV (read back by :func:`lagamine_py.results.read_table`)::
+
+    step,step_name,increment,time,dt,iterations,residual,cutbacks,failed,reason
+
+one row per converged increment (``failed`` = ``no``) and one per failed attempt
+(``failed`` = ``yes``, ``reason`` says why; ``time`` and ``dt`` are those attempted), in the
+order they happened, flushed each time: a glance at the tail tells how a run is going.
+
+``<deck>.log`` holds the run's messages: a start line, the Newton residual history of every
+converged increment, every failed attempt with its reason, the final line with the exit status,
+and everything logged to the ``lagamine_py`` logger (and its children) from the thread that
+started the run, through a :class:`logging.Handler` attached for the run's duration.
+"""
+from __future__ import annotations
+
+import csv
+import logging
+import threading
+from datetime import datetime, timezone
+from typing import Any
+
+from ..registry import register
+from .base import IncrementResult, Writer
+
+STA_HEADER = ("step", "step_name", "increment", "time", "dt", "iterations", "residual",
+              "cutbacks", "failed", "reason")
+LOGGER = "lagamine_py"
+LOG_FORMAT = "%(asctime)s %(levelname)-7s %(name)s: %(message)s"
+
+
+def _g(x: Any) -> str:
+    return "" if x is None else f"{float(x):.17g}"
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+class _ThreadFilter(logging.Filter):
+    """Keep records from one thread: parallel runs in one process keep separate logs."""
+
+    def __init__(self, thread: int):
+        super().__init__()
+        self.thread = thread
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.thread == self.thread
+
+
+@register("writers", "STATUS")
+class StatusWriter(Writer):
+    """<deck>.sta (one row per increment or failed attempt) and <deck>.log (messages)."""
+
+    params = ()
+
+    def start_run(self) -> None:
+        self.outdir.mkdir(parents=True, exist_ok=True)
+        deck = getattr(self.model, "name", None) or "run"
+        self._sta_fh = open(self.outdir / f"{deck}.sta", "w", newline="")
+        self._sta = csv.writer(self._sta_fh, lineterminator="\n")
+        self._sta.writerow(STA_HEADER)
+        self._sta_fh.flush()
+        self._log_fh = open(self.outdir / f"{deck}.log", "w")
+        self.step_name = ""
+        self._attach_handler()
+        heading = getattr(self.model, "heading", "")
+        n_nodes = len(getattr(self.model, "node_ids", ()))
+        n_elem = sum(len(b.ids) for b in getattr(self.model, "blocks", ()))
+        self._line(f"lagamine-py run of deck {deck} started {_now()}: {n_nodes} nodes, {n_elem} elements"
+                   + (f"; heading: {heading.strip()}" if heading and heading.strip() else ""))
+
+    def _attach_handler(self) -> None:
+        self._handler = logging.StreamHandler(self._log_fh)
+        self._handler.setFormatter(logging.Formatter(LOG_FORMAT))
+        self._handler.addFilter(_ThreadFilter(threading.get_ident()))
+        logger = logging.getLogger(LOGGER)
+        self._old_level = logger.level
+        if logger.getEffectiveLevel() > logging.INFO:
+            logger.setLevel(logging.INFO)       # the solver's INFO messages belong in the log
+        logger.addHandler(self._handler)
+
+    def _line(self, text: str) -> None:
+        """A message of this writer: same layout as the logging handler's lines, flushed."""
+        record = logging.LogRecord(LOGGER, logging.INFO, __file__, 0, text, None, None)
+        self._log_fh.write(self._handler.format(record) + "\n")
+        self._log_fh.flush()
+
+    def start_step(self, step_number: int, step) -> None:
+        self.step_name = getattr(step, "name", "") or ""
+        self._line(f"step {step_number} {self.step_name} starts")
+
+    def increment(self, r: IncrementResult) -> None:
+        self._sta.writerow([r.step, r.step_name or self.step_name, r.increment, _g(r.time), _g(r.dt),
+                            r.iterations, _g(r.residual), r.cutbacks, "no", ""])
+        self._sta_fh.flush()
+        history = " ".join(f"{x:.3e}" for x in r.residual_history)
+        self._line(f"step {r.step} increment {r.increment} converged: time {r.time:.6g}, dt {r.dt:.6g}, "
+                   f"{r.iterations} iterations, residual {r.residual:.3e}, cutbacks {r.cutbacks}"
+                   + (f"; residuals {history}" if history else ""))
+
+    def failed_attempt(self, info: dict[str, Any]) -> None:
+        """``info`` keys (all optional): step, step_name, increment, time (attempted end time),
+        dt, iterations, residual, cutbacks, reason, residual_history."""
+        reason = str(info.get("reason", "")).strip() or "unknown"
+        self._sta.writerow([info.get("step", ""), info.get("step_name", self.step_name),
+                            info.get("increment", ""), _g(info.get("time")), _g(info.get("dt")),
+                            info.get("iterations", ""), _g(info.get("residual")),
+                            info.get("cutbacks", ""), "yes", reason])
+        self._sta_fh.flush()
+        history = " ".join(f"{x:.3e}" for x in info.get("residual_history", ()))
+        dt = info.get("dt")
+        self._line(f"step {info.get('step', '?')} increment {info.get('increment', '?')} attempt failed"
+                   + (f" (dt {float(dt):.6g})" if dt is not None else "") + f": {reason}"
+                   + (f"; residuals {history}" if history else ""))
+
+    def close(self, status: int, message: str) -> None:
+        if getattr(self, "_handler", None) is None:
+            return
+        self._line(f"run finished {_now()} with exit status {status}: {message}")
+        logger = logging.getLogger(LOGGER)
+        logger.removeHandler(self._handler)
+        logger.setLevel(self._old_level)
+        self._handler = None
+        self._sta_fh.close()
+        self._log_fh.close()
