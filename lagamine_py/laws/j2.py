@@ -1,0 +1,151 @@
+"""J2 (von Mises) plasticity with isotropic hardening: the radial return shared by its laws.
+
+All arrays carry any leading shape ``...`` (``(e, q)`` in an element group); the 4-vector
+axis is last (``s``/``t``), see :mod:`lagamine_py.laws.base`::
+
+    strain = [e11, e22, e33, g12]   (engineering shear)
+    stress = [s11, s22, s33, s12]
+
+A subclass of :class:`J2Plasticity` gives the hardening curve ``sigma_y(peeq)`` and solves
+the scalar consistency equation of the radial return
+
+    q = sigma_y(peeq_n + dp),    q = q_tr - 3 G dp
+
+for ``q`` (the von Mises stress after the return) on the plastic points only, returning
+also ``dq/dq_tr``; everything else (trial split, plastic mask, stress, consistent tangent,
+new state) is done here once, batched over all points.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..registry import Param, ParamError, register
+from .base import MaterialLaw
+
+# Relative margin above the current yield stress for a point to count as plastic: a point
+# re-evaluated at its converged state (zero increment) stays elastic despite round-off.
+YIELD_RTOL = 1e-12
+
+_NORMAL = np.array([1.0, 1.0, 1.0, 0.0])          # identity tensor as a 4-vector
+_DEV = np.diag([1.0, 1.0, 1.0, 0.5])              # engineering strain -> tensor components
+_DEV[:3, :3] -= 1.0 / 3.0                          # ... and deviatoric part (2G * _DEV = dev. stiffness)
+
+
+def isotropic_moduli(E: float, nu: float) -> tuple[float, float]:
+    """Bulk and shear moduli ``(K, G)`` from Young's modulus and Poisson's ratio."""
+    return E / (3.0 * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+
+
+def elastic_matrix(E: float, nu: float) -> np.ndarray:
+    """Isotropic elasticity ``D`` (4, 4) with engineering-shear columns (``s12 = G g12``)."""
+    K, G = isotropic_moduli(E, nu)
+    return K * np.outer(_NORMAL, _NORMAL) + 2.0 * G * _DEV
+
+
+def von_mises(stress: np.ndarray) -> np.ndarray:
+    """Von Mises equivalent stress (...) of a stress 4-vector (...,4)."""
+    s = stress - stress[..., :3].mean(-1, keepdims=True) * _NORMAL
+    return np.sqrt(1.5 * (np.sum(s[..., :3] ** 2, -1) + 2.0 * s[..., 3] ** 2))
+
+
+class J2Plasticity(MaterialLaw):
+    """Base of J2 laws: elastic isotropic moduli ``E``, ``NU`` and a hardening curve.
+
+    Subclasses implement :meth:`yield_stress` and :meth:`_return_map`.
+    """
+
+    #: parameters that must be strictly positive (Param bounds are inclusive)
+    positive: tuple[str, ...] = ("E",)
+
+    def __init__(self, **values):
+        super().__init__(**values)
+        bad = [f"{k} must be > 0, got {self.p[k]:g}" for k in self.positive if not self.p[k] > 0.0]
+        if bad:
+            raise ParamError("; ".join(bad))
+        self.K, self.G = isotropic_moduli(self.p["E"], self.p["NU"])
+        self.D_elastic = elastic_matrix(self.p["E"], self.p["NU"])
+
+    # -- to implement ---------------------------------------------------------------------
+    def yield_stress(self, peeq: np.ndarray) -> np.ndarray:
+        """Current yield stress ``sigma_y(peeq)`` (same shape as ``peeq``)."""
+        raise NotImplementedError
+
+    def _return_map(self, q_tr: np.ndarray, peeq_n: np.ndarray):
+        """Solve ``q = sigma_y(peeq_n + (q_tr - q)/(3G))`` on plastic points (1-D arrays
+        with ``q_tr > sigma_y(peeq_n)``).  Returns ``(q, peeq, dq_dqtr, ok)``, each (m,):
+        the von Mises stress and plastic strain after the return (``peeq`` computed where it
+        is best conditioned, not necessarily as ``peeq_n + (q_tr - q)/3G``), ``dq/dq_tr``
+        and convergence flags."""
+        raise NotImplementedError
+
+    # -- shared radial return -------------------------------------------------------------
+    def update(self, eps_e_trial, state):
+        """Radial return of all points at once; see :meth:`MaterialLaw.update`.
+
+        ``eps_e_trial`` (...,4); ``state`` holds ``eps_e`` (...,4) and ``peeq`` (...).
+        Returns ``stress`` (...,4), ``D`` (...,4,4), ``new_state``, ``ok`` (...).
+        """
+        eps = np.asarray(eps_e_trial, dtype=float)
+        shape = eps.shape[:-1]
+        eps = eps.reshape(-1, 4)
+        peeq_n = np.broadcast_to(np.asarray(state["peeq"], dtype=float), shape).reshape(-1)
+        K, G = self.K, self.G
+
+        tr = eps[:, :3].sum(-1)                                        # (m,)
+        s_tr = 2.0 * G * eps @ _DEV.T                                  # (m, s) tensor components
+        norm_tr = np.sqrt(np.sum(s_tr[:, :3] ** 2, -1) + 2.0 * s_tr[:, 3] ** 2)
+        q_tr = np.sqrt(1.5) * norm_tr
+        sy_n = self.yield_stress(peeq_n)
+        plastic = q_tr > sy_n * (1.0 + YIELD_RTOL)
+
+        q, peeq, dq = q_tr.copy(), peeq_n.copy(), np.ones_like(q_tr)
+        ok = np.ones(q_tr.shape, dtype=bool)
+        if plastic.any():
+            q[plastic], peeq[plastic], dq[plastic], ok[plastic] = self._return_map(
+                q_tr[plastic], peeq_n[plastic])
+
+        theta = np.divide(q, q_tr, out=np.ones_like(q), where=plastic)  # dev. stress scale
+        s = theta[:, None] * s_tr
+        stress = s + (K * tr)[:, None] * _NORMAL
+        eps_e = eps.copy()
+        # elastic strain of the returned stress: same volume, deviator s / 2G (shear s12 / G)
+        eps_e[plastic] = (tr[plastic, None] / 3.0 * _NORMAL
+                          + s[plastic] / (2.0 * G) * np.array([1.0, 1.0, 1.0, 2.0]))
+
+        D = np.broadcast_to(self.D_elastic, (eps.shape[0], 4, 4)).copy()
+        if plastic.any():
+            n = s_tr[plastic] / norm_tr[plastic, None]                     # unit flow direction
+            th, beta = theta[plastic], dq[plastic]
+            D[plastic] = (K * np.outer(_NORMAL, _NORMAL)
+                          + (2.0 * G * th)[:, None, None] * _DEV
+                          + (2.0 * G * (beta - th))[:, None, None] * np.einsum("ms,mt->mst", n, n))
+        ok &= np.isfinite(stress).all(-1) & np.isfinite(D).all((-2, -1))
+
+        new_state = {"eps_e": eps_e.reshape(shape + (4,)), "peeq": peeq.reshape(shape)}
+        return stress.reshape(shape + (4,)), D.reshape(shape + (4, 4)), new_state, ok.reshape(shape)
+
+
+@register("laws", "J2_LINEAR")
+class J2Linear(J2Plasticity):
+    """J2 plasticity with linear isotropic hardening ``sigma_y = SIGMAY + H peeq``
+    (``H = 0``: perfect plasticity).  The return mapping is closed-form."""
+
+    params = (
+        Param("E", float, bounds=(0.0, None), unit="stress", doc="Young's modulus (> 0)"),
+        Param("NU", float, bounds=(-0.999, 0.4999), doc="Poisson's ratio"),
+        Param("SIGMAY", float, bounds=(0.0, None), unit="stress", doc="initial yield stress (> 0)"),
+        Param("H", float, 0.0, bounds=(0.0, None), unit="stress",
+              doc="hardening modulus d sigma_y / d peeq (0: perfect plasticity)"),
+    )
+    doc = "Von Mises plasticity with linear isotropic hardening (H = 0: perfectly plastic)."
+
+    positive = ("E", "SIGMAY")
+
+    def yield_stress(self, peeq):
+        return self.p["SIGMAY"] + self.p["H"] * np.asarray(peeq, dtype=float)
+
+    def _return_map(self, q_tr, peeq_n):
+        H, G3 = self.p["H"], 3.0 * self.G
+        dp = (q_tr - self.yield_stress(peeq_n)) / (G3 + H)
+        return (q_tr - G3 * dp, peeq_n + dp, np.full_like(q_tr, H / (G3 + H)),
+                np.ones(q_tr.shape, dtype=bool))
