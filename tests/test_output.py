@@ -285,3 +285,40 @@ def test_writer_modules_do_not_import_vtk():
             "default_writers('unused', Model(name='x')); print('vtk' in sys.modules)")
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True).stdout.strip() == "False"
+
+
+def test_resume_appends_and_drops_what_came_after_the_restart_point(tmp_path):
+    model, q8, q4 = build_mesh()
+
+    def drive(writers, incs, seed0):
+        for w in writers:
+            w.start_run()
+        for w in writers:
+            w.start_step(1, Step(name="LOAD"))
+        results = [make_result(model, q8, q4, inc=k, time=0.25 * k, write_fields=k % 2 == 1, seed=seed0 + k)
+                   for k in incs]
+        for r in results:
+            for w in writers:
+                w.increment(r)
+        for w in writers:
+            w.close(0, "done")
+        return results
+
+    first = drive(default_writers(tmp_path, model), [1, 2, 3], 0)
+    # the restart data held increment 2: increment 3 is computed again, with other numbers
+    again = drive(default_writers(tmp_path, model, append=True), [3, 4, 5], 100)
+    _, rows = read_csv(tmp_path / "reactions.csv")
+    assert [int(r[1]) for r in rows] == [1, 1, 2, 2, 3, 3, 4, 4, 5, 5]
+    want = [first[0], first[1], *again]
+    assert [float(r[4]) for r in rows[::2]] == [x.reactions_by_set["LEFT"][0] for x in want]
+    header, rows = read_csv(tmp_path / "contact.csv")
+    assert header[0] == "step" and [int(r[1]) for r in rows[::3]] == [1, 3, 5]
+    assert float(rows[3][7]) == again[0].contacts[0].p[0]
+    _, rows = read_csv(tmp_path / "deck.sta")
+    assert [int(r[2]) for r in rows] == [1, 2, 3, 4, 5]
+    sets = [(float(d.get("timestep")), d.get("file"))
+            for d in ET.parse(tmp_path / "deck.pvd").getroot().iter("DataSet") if d.get("part") == "0"]
+    assert sets == [(0.25, "deck_0000.vtu"), (0.75, "deck_0001.vtu"), (1.25, "deck_0002.vtu")]
+    assert np.array_equal(read_vtu(tmp_path / "deck_0001.vtu")["point:displacement"][:, :2], again[0].u)
+    log = (tmp_path / "deck.log").read_text()
+    assert "run of deck deck started" in log and "run of deck deck resumed" in log

@@ -15,8 +15,13 @@ __all__ = ["ContactPoints", "IncrementResult", "Writer", "DEFAULT_WRITERS", "def
 DEFAULT_WRITERS = ("VTK", "CONTACT", "REACTIONS", "STATUS", "DISPLACEMENTS")
 
 
-def default_writers(outdir: Path, model, names: tuple[str, ...] = DEFAULT_WRITERS) -> list[Writer]:
-    """Instances of the writers ``names`` (registry names) for a run writing into ``outdir``."""
+def default_writers(outdir: Path, model, names: tuple[str, ...] = DEFAULT_WRITERS, **options) -> list[Writer]:
+    """Instances of the writers ``names`` (registry names) for a run writing into ``outdir``.
+
+    ``options`` go to every writer; ``append=True`` resumes into an existing output directory
+    (``lagamine-py run --restart``): the built-in writers keep what is there and drop what the
+    interrupted run wrote at or after the first resumed increment.
+    """
     from ..registry import get
 
-    return [get("writers", name)(Path(outdir), model) for name in names]
+    return [get("writers", name)(Path(outdir), model, **options) for name in names]

@@ -12,10 +12,12 @@ order they happened, flushed each time: a glance at the tail tells how a run is 
 converged increment, every failed attempt with its reason, the final line with the exit status,
 and everything logged to the ``lagamine_py`` logger (and its children) from the thread that
 started the run, through a :class:`logging.Handler` attached for the run's duration.
+
+Option ``append`` (resuming a run): both files are kept and appended to; the status rows at or
+after the first resumed (step, increment) are dropped (see :mod:`lagamine_py.output.tables`).
 """
 from __future__ import annotations
 
-import csv
 import logging
 import threading
 from datetime import datetime, timezone
@@ -23,6 +25,7 @@ from typing import Any
 
 from ..registry import register
 from .base import IncrementResult, Writer
+from .tables import CsvFiles
 
 STA_HEADER = ("step", "step_name", "increment", "time", "dt", "iterations", "residual",
               "cutbacks", "failed", "reason")
@@ -55,21 +58,31 @@ class StatusWriter(Writer):
 
     params = ()
 
+    def __init__(self, outdir, model, **options):
+        super().__init__(outdir, model, **options)
+        self.append = bool(options.get("append", False))
+
     def start_run(self) -> None:
-        self.outdir.mkdir(parents=True, exist_ok=True)
         deck = getattr(self.model, "name", None) or "run"
-        self._sta_fh = open(self.outdir / f"{deck}.sta", "w", newline="")
-        self._sta = csv.writer(self._sta_fh, lineterminator="\n")
-        self._sta.writerow(STA_HEADER)
-        self._sta_fh.flush()
-        self._log_fh = open(self.outdir / f"{deck}.log", "w")
+        self._sta_files = CsvFiles(self.outdir, {"sta": (f"{deck}.sta", STA_HEADER)}, self.append)
+        self._log_fh = open(self.outdir / f"{deck}.log", "a" if self.append else "w")
         self.step_name = ""
         self._attach_handler()
         heading = getattr(self.model, "heading", "")
         n_nodes = len(getattr(self.model, "node_ids", ()))
         n_elem = sum(len(b.ids) for b in getattr(self.model, "blocks", ()))
-        self._line(f"lagamine-py run of deck {deck} started {_now()}: {n_nodes} nodes, {n_elem} elements"
+        self._line(f"lagamine-py run of deck {deck} {'resumed' if self.append else 'started'} {_now()}: "
+                   f"{n_nodes} nodes, {n_elem} elements"
                    + (f"; heading: {heading.strip()}" if heading and heading.strip() else ""))
+
+    def _sta_row(self, step, increment, row: list) -> None:
+        """Write one status row (dropping a resumed run's stale rows first) and flush."""
+        try:
+            self._sta_files.resume_at(int(step), int(increment))
+        except (TypeError, ValueError):
+            pass        # no usable (step, increment): trim on the next row that has one
+        self._sta_files.writers["sta"].writerow(row)
+        self._sta_files.flush()
 
     def _attach_handler(self) -> None:
         self._handler = logging.StreamHandler(self._log_fh)
@@ -92,9 +105,9 @@ class StatusWriter(Writer):
         self._line(f"step {step_number} {self.step_name} starts")
 
     def increment(self, r: IncrementResult) -> None:
-        self._sta.writerow([r.step, r.step_name or self.step_name, r.increment, _g(r.time), _g(r.dt),
-                            r.iterations, _g(r.residual), r.cutbacks, "no", ""])
-        self._sta_fh.flush()
+        self._sta_row(r.step, r.increment,
+                      [r.step, r.step_name or self.step_name, r.increment, _g(r.time), _g(r.dt),
+                       r.iterations, _g(r.residual), r.cutbacks, "no", ""])
         history = " ".join(f"{x:.3e}" for x in r.residual_history)
         self._line(f"step {r.step} increment {r.increment} converged: time {r.time:.6g}, dt {r.dt:.6g}, "
                    f"{r.iterations} iterations, residual {r.residual:.3e}, cutbacks {r.cutbacks}"
@@ -104,11 +117,11 @@ class StatusWriter(Writer):
         """``info`` keys (all optional): step, step_name, increment, time (attempted end time),
         dt, iterations, residual, cutbacks, reason, residual_history."""
         reason = str(info.get("reason", "")).strip() or "unknown"
-        self._sta.writerow([info.get("step", ""), info.get("step_name", self.step_name),
-                            info.get("increment", ""), _g(info.get("time")), _g(info.get("dt")),
-                            info.get("iterations", ""), _g(info.get("residual")),
-                            info.get("cutbacks", ""), "yes", reason])
-        self._sta_fh.flush()
+        self._sta_row(info.get("step"), info.get("increment"),
+                      [info.get("step", ""), info.get("step_name", self.step_name),
+                       info.get("increment", ""), _g(info.get("time")), _g(info.get("dt")),
+                       info.get("iterations", ""), _g(info.get("residual")),
+                       info.get("cutbacks", ""), "yes", reason])
         history = " ".join(f"{x:.3e}" for x in info.get("residual_history", ()))
         dt = info.get("dt")
         self._line(f"step {info.get('step', '?')} increment {info.get('increment', '?')} attempt failed"
@@ -123,5 +136,5 @@ class StatusWriter(Writer):
         logger.removeHandler(self._handler)
         logger.setLevel(self._old_level)
         self._handler = None
-        self._sta_fh.close()
+        self._sta_files.close()
         self._log_fh.close()

@@ -8,10 +8,17 @@ increment, flushed before returning.
 * ``contact_totals.csv``: one row per contact pair on every converged increment (cheap, and it
   makes the P(t), T(t) curves independent of the field-output frequency), same CONTACT=NO rule.
 * ``reactions.csv``: one row per imposed-displacement target on every converged increment.
+
+Resuming a run (``append=True``, for ``lagamine-py run --restart``): the files are opened for
+appending, and when the first increment arrives the rows at or after its (step, increment) --
+written after the restart point by the interrupted run -- are dropped (:func:`trim_rows`).
 """
 from __future__ import annotations
 
 import csv
+import math
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -30,31 +37,109 @@ def fmt(values) -> np.ndarray:
     return np.char.mod("%.17g", np.asarray(values, float))
 
 
+def trim_rows(path: Path, before: tuple[int, int]) -> None:
+    """Keep the header and the rows of a CSV whose (step, increment) is below ``before``.
+
+    A row with no readable increment (a failed attempt logged without one) counts as the last
+    of its step.  Rewritten atomically (tmp file + rename), and only when something is dropped.
+    """
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    if not rows:
+        return
+    i_step, i_inc = rows[0].index("step"), rows[0].index("increment")
+
+    def number(row, i):
+        try:
+            return float(row[i])
+        except (ValueError, IndexError):
+            return math.inf
+
+    kept = rows[:1] + [r for r in rows[1:] if (number(r, i_step), number(r, i_inc)) < tuple(before)]
+    if len(kept) == len(rows):
+        return
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", newline="") as fh:
+        csv.writer(fh, lineterminator="\n").writerows(kept)
+    os.replace(tmp, path)
+
+
+class CsvFiles:
+    """CSV files opened together, written with ``csv.writer``, flushed together.
+
+    ``append``: keep existing content (write the header only into new or empty files); call
+    :meth:`resume_at` with the first (step, increment) of the resumed run to drop what the
+    interrupted run wrote at or after it.
+    """
+
+    def __init__(self, outdir: Path, files: dict[str, tuple[str, tuple[str, ...]]], append: bool = False):
+        outdir.mkdir(parents=True, exist_ok=True)
+        self.paths = {attr: outdir / name for attr, (name, _) in files.items()}
+        self.handles, self.writers = {}, {}
+        self.pending_trim = append
+        for attr, (name, header) in files.items():
+            self._open(attr, "a" if append else "w", header)
+        self.flush()
+
+    def _open(self, attr: str, mode: str, header=()) -> None:
+        path = self.paths[attr]
+        fresh = mode == "w" or not path.exists() or path.stat().st_size == 0
+        fh = open(path, mode, newline="")
+        self.handles[attr] = fh
+        self.writers[attr] = csv.writer(fh, lineterminator="\n")
+        if fresh and header:
+            self.writers[attr].writerow(header)
+
+    def resume_at(self, step: int, increment: int) -> None:
+        """Once, in append mode: drop rows at or after (step, increment) in every file."""
+        if not self.pending_trim:
+            return
+        self.pending_trim = False
+        for attr, fh in self.handles.items():
+            fh.close()
+            trim_rows(self.paths[attr], (int(step), int(increment)))
+            self._open(attr, "a")
+
+    def flush(self) -> None:
+        for fh in self.handles.values():
+            fh.flush()
+
+    def close(self) -> None:
+        for fh in self.handles.values():
+            fh.close()
+        self.handles = {}
+
+
 class _CsvWriter(Writer):
-    """Opens ``files`` = {attribute: (file name, header)} at start_run, closes them at close."""
+    """Opens ``files`` = {attribute: (file name, header)} at start_run, closes them at close.
+
+    Option ``append`` (bool, default False): resume into existing files (see the module doc).
+    """
 
     files: dict[str, tuple[str, tuple[str, ...]]] = {}
 
+    def __init__(self, outdir: Path, model, **options):
+        super().__init__(outdir, model, **options)
+        self.append = bool(options.get("append", False))
+
     def start_run(self) -> None:
-        self.outdir.mkdir(parents=True, exist_ok=True)
-        self._handles = []
-        for attr, (name, header) in self.files.items():
-            fh = open(self.outdir / name, "w", newline="")
-            out = csv.writer(fh, lineterminator="\n")
-            out.writerow(header)
-            fh.flush()
-            self._handles.append(fh)
+        self._csv = CsvFiles(self.outdir, self.files, self.append)
+        for attr, out in self._csv.writers.items():
             setattr(self, attr, out)
-        self._flush()
+
+    def _begin(self, result: IncrementResult) -> None:
+        """Before writing an increment: settle a resumed run's files."""
+        if self._csv.pending_trim:
+            self._csv.resume_at(result.step, result.increment)
+            for attr, out in self._csv.writers.items():
+                setattr(self, attr, out)
 
     def _flush(self) -> None:
-        for fh in self._handles:
-            fh.flush()
+        self._csv.flush()
 
     def close(self, status: int, message: str) -> None:
-        for fh in getattr(self, "_handles", ()):
-            fh.close()
-        self._handles = []
+        if getattr(self, "_csv", None) is not None:
+            self._csv.close()
 
 
 @register("writers", "CONTACT")
@@ -73,6 +158,7 @@ class ContactWriter(_CsvWriter):
         self.enabled = bool(getattr(output, "contact", True))
 
     def increment(self, result: IncrementResult) -> None:
+        self._begin(result)
         if not self.enabled or not result.contacts:
             return
         head = [str(result.step), str(result.increment), fmt(result.time)[()]]
@@ -99,6 +185,7 @@ class ReactionsWriter(_CsvWriter):
     files = {"_rows": ("reactions.csv", REACTIONS_HEADER)}
 
     def increment(self, result: IncrementResult) -> None:
+        self._begin(result)
         head = [str(result.step), str(result.increment), fmt(result.time)[()]]
         self._rows.writerows(head + [name, *fmt(np.asarray(rf, float).ravel()[:2])]
                              for name, rf in result.reactions_by_set.items())

@@ -19,11 +19,16 @@ exact for fields the Gauss rule can represent), then averaged over the elements 
 node.  Cell values are Gauss-weight means over the element's parent square (the exact integral
 mean for affine elements); the cell von Mises is the mean of the Gauss-point von Mises values.
 
+Option ``append`` (resuming a run): the existing PVD entries are kept up to, not including, the
+time of the first resumed increment, and the file counter continues after the last kept file.
+
 The ``vtk`` package is imported inside the methods, so ``lagamine-py --help`` does not load it.
 """
 from __future__ import annotations
 
 import os
+import re
+import xml.etree.ElementTree as ET
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -34,8 +39,8 @@ from ..registry import register
 from .base import IncrementResult, Writer
 
 # VTK cell types by number of element nodes (CPE8 node order = VTK_QUADRATIC_QUAD order).
-VTK_VERTEX, VTK_POLY_LINE = 1, 4
-CELL_TYPES = {3: 5, 4: 9, 6: 22, 8: 23, 9: 28}
+VTK_VERTEX, VTK_POLY_LINE, VTK_POLYGON = 1, 4, 7
+CELL_TYPES = {3: 5, 4: 9, 6: 22, 8: 23, 9: 28}     # other node counts: VTK_POLYGON
 
 # Parent coordinates of quadrilateral nodes: corners, mid-sides 5..8, centre (Q9).
 QUAD_NODES = np.array([(-1, -1), (1, -1), (1, 1), (-1, 1),
@@ -184,11 +189,22 @@ def _write_vtu(grid, path: Path) -> None:
         raise OSError(f"could not write {path}")
 
 
+def read_pvd(path: Path) -> list[tuple[float, int, str]]:
+    """(timestep, part, file) of each DataSet of a PVD file."""
+    root = ET.parse(path).getroot()
+    return [(float(d.get("timestep", 0)), int(d.get("part", 0)), d.get("file", ""))
+            for d in root.iter("DataSet")]
+
+
 @register("writers", "VTK")
 class VtkWriter(Writer):
     """VTU files per output increment (bodies, contact points, foundations) and a PVD index."""
 
     params = ()
+
+    def __init__(self, outdir, model, **options):
+        super().__init__(outdir, model, **options)
+        self.append = bool(options.get("append", False))
 
     def start_run(self) -> None:
         self.outdir.mkdir(parents=True, exist_ok=True)
@@ -196,9 +212,24 @@ class VtkWriter(Writer):
         self.pvd_path = self.outdir / f"{self.deck}.pvd"
         self.counter = 0
         self.entries: list[tuple[float, int, str]] = []    # (time, part, file name)
+        self._pending_trim = self.append and self.pvd_path.exists()
+        if self._pending_trim:
+            self.entries = read_pvd(self.pvd_path)
+        else:
+            self._write_pvd()
+
+    def _resume_at(self, time: float) -> None:
+        """Drop the entries an interrupted run wrote at or after ``time``; continue the counter."""
+        self._pending_trim = False
+        self.entries = [e for e in self.entries if e[0] < time]
+        numbers = [int(m.group(1)) for _, _, name in self.entries
+                   if (m := re.search(r"_(\d+)\.vtu$", name))]
+        self.counter = max(numbers, default=-1) + 1
         self._write_pvd()
 
     def increment(self, result: IncrementResult) -> None:
+        if self._pending_trim:
+            self._resume_at(float(result.time))
         if not result.write_fields:
             return
         stem = f"{self.deck}_{{}}{self.counter:04d}.vtu"
@@ -222,7 +253,7 @@ class VtkWriter(Writer):
 
         n = len(r.coords0)
         conn = [np.asarray(c["conn"]) for c in r.cells]
-        types = [np.full(len(cn), CELL_TYPES[cn.shape[1]]) for cn in conn]
+        types = [np.full(len(cn), CELL_TYPES.get(cn.shape[1], VTK_POLYGON)) for cn in conn]
         grid = _grid(_vec3(r.coords0), conn, types)
 
         s_nod, peeq_nod = nodal_fields(n, r.cells)
