@@ -229,6 +229,26 @@ def test_large_strain_tangent(name, lawname):
         assert (res.state["peeq"] > state["peeq"]).all()
 
 
+@pytest.mark.parametrize("name", BUILTIN)
+def test_homogeneous_finite_strain_gives_the_hencky_stress(name):
+    # x = F X on a distorted patch: Cauchy stress = D ln(V) / J everywhere, V = sqrt(F F^T)
+    from scipy.linalg import logm
+    cls = registry.get("elements", name)
+    coords, conn, _ = patch(cls.nen, x0=1.0 if cls.axisymmetric else 0.0)
+    g = group_of(name, coords, conn, elastic())
+    if cls.axisymmetric:
+        F3 = np.diag([1.15, 0.8, 1.15])                  # u_r = c r, u_z = d z: F33 = r / R
+    else:
+        F3 = np.eye(3)
+        F3[:2, :2] = [[1.2, 0.3], [-0.1, 0.9]]
+    u = coords @ F3[:2, :2].T - coords
+    res = g.compute(u, 0 * u, g.init_state(), StepContext(nlgeom=True))
+    logV = 0.5 * logm(F3 @ F3.T).real
+    tau = hooke_matrix(E, NU) @ np.array([logV[0, 0], logV[1, 1], logV[2, 2], 2 * logV[0, 1]])
+    sig = tau / np.linalg.det(F3)
+    assert np.allclose(res.state["stress"], sig, rtol=0, atol=1e-10 * np.abs(sig).max())
+
+
 def test_log_derivative_at_equal_eigenvalues():
     from lagamine_py.elements.solid import log_b
     from scipy.linalg import logm
