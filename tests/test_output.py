@@ -238,8 +238,9 @@ def test_status_and_log(run):
     out, _, results, writers = run
     logging.getLogger("lagamine_py.solver").info("newton says hello")
     status = next(w for w in writers if type(w).__name__ == "StatusWriter")
-    status.failed_attempt(dict(step=1, increment=4, time=1.5, dt=0.5, iterations=25, residual=3.0,
-                               cutbacks=1, reason="too many iterations, residual 3"))
+    status.failed_attempt(dict(step=1, step_name="LOAD", increment=4, time=1.0, step_time=1.0, dt=0.5,
+                               iterations=2, residual_history=[1.0, 2.0, 3.0], cutbacks=1,
+                               reason="too many iterations, residual 3", message="diverging: residual grew"))
     header, rows = read_csv(out / "deck.sta")
     assert header[:8] == ["step", "step_name", "increment", "time", "dt", "iterations", "residual", "cutbacks"]
     assert [(int(r[2]), float(r[3]), r[8]) for r in rows] == [(1, 0.25, "no"), (2, 0.5, "no"), (3, 1.0, "no"),
@@ -249,7 +250,8 @@ def test_status_and_log(run):
     log = (out / "deck.log").read_text()
     assert "run of deck deck started" in log
     assert log.count("residuals 1.000e+00 2.500e-03 1.234e-09") == 3
-    assert "newton says hello" in log and "too many iterations" in log
+    assert "newton says hello" in log and "diverging: residual grew; residuals 1.000e+00 2.000e+00" in log
+    assert float(rows[3][6]) == 3.0 and int(rows[3][7]) == 1
     status.close(3, "step LOAD did not converge")
     log = (out / "deck.log").read_text()
     assert "exit status 3: step LOAD did not converge" in log.splitlines()[-1]
@@ -287,7 +289,8 @@ def test_writer_modules_do_not_import_vtk():
                           check=True).stdout.strip() == "False"
 
 
-def test_resume_appends_and_drops_what_came_after_the_restart_point(tmp_path):
+@pytest.mark.parametrize("how", ["restarting", "append"])
+def test_resume_appends_and_drops_what_came_after_the_restart_point(tmp_path, how):
     model, q8, q4 = build_mesh()
 
     def drive(writers, incs, seed0):
@@ -306,7 +309,11 @@ def test_resume_appends_and_drops_what_came_after_the_restart_point(tmp_path):
 
     first = drive(default_writers(tmp_path, model), [1, 2, 3], 0)
     # the restart data held increment 2: increment 3 is computed again, with other numbers
-    again = drive(default_writers(tmp_path, model, append=True), [3, 4, 5], 100)
+    # as the step controller does (``restarting`` set before start_run), or the append option
+    resumed = default_writers(tmp_path, model, append=how == "append")
+    for w in resumed:
+        w.restarting = how == "restarting"
+    again = drive(resumed, [3, 4, 5], 100)
     _, rows = read_csv(tmp_path / "reactions.csv")
     assert [int(r[1]) for r in rows] == [1, 1, 2, 2, 3, 3, 4, 4, 5, 5]
     want = [first[0], first[1], *again]

@@ -25,7 +25,7 @@ from typing import Any
 
 from ..registry import register
 from .base import IncrementResult, Writer
-from .tables import CsvFiles
+from .tables import CsvFiles, resuming
 
 STA_HEADER = ("step", "step_name", "increment", "time", "dt", "iterations", "residual",
               "cutbacks", "failed", "reason")
@@ -34,7 +34,7 @@ LOG_FORMAT = "%(asctime)s %(levelname)-7s %(name)s: %(message)s"
 
 
 def _g(x: Any) -> str:
-    return "" if x is None else f"{float(x):.17g}"
+    return "" if x is None else repr(float(x))      # shortest exact text
 
 
 def _now() -> str:
@@ -64,14 +64,15 @@ class StatusWriter(Writer):
 
     def start_run(self) -> None:
         deck = getattr(self.model, "name", None) or "run"
-        self._sta_files = CsvFiles(self.outdir, {"sta": (f"{deck}.sta", STA_HEADER)}, self.append)
-        self._log_fh = open(self.outdir / f"{deck}.log", "a" if self.append else "w")
+        append = resuming(self)
+        self._sta_files = CsvFiles(self.outdir, {"sta": (f"{deck}.sta", STA_HEADER)}, append)
+        self._log_fh = open(self.outdir / f"{deck}.log", "a" if append else "w")
         self.step_name = ""
         self._attach_handler()
         heading = getattr(self.model, "heading", "")
         n_nodes = len(getattr(self.model, "node_ids", ()))
         n_elem = sum(len(b.ids) for b in getattr(self.model, "blocks", ()))
-        self._line(f"lagamine-py run of deck {deck} {'resumed' if self.append else 'started'} {_now()}: "
+        self._line(f"lagamine-py run of deck {deck} {'resumed' if append else 'started'} {_now()}: "
                    f"{n_nodes} nodes, {n_elem} elements"
                    + (f"; heading: {heading.strip()}" if heading and heading.strip() else ""))
 
@@ -114,19 +115,29 @@ class StatusWriter(Writer):
                    + (f"; residuals {history}" if history else ""))
 
     def failed_attempt(self, info: dict[str, Any]) -> None:
-        """``info`` keys (all optional): step, step_name, increment, time (attempted end time),
-        dt, iterations, residual, cutbacks, reason, residual_history."""
+        """One failed attempt (the controller cuts back and tries again).
+
+        ``info`` keys, all optional (as :mod:`lagamine_py.solver.steps` sends them): ``step``,
+        ``step_name``, ``increment`` (the one being attempted), ``time`` (total time at the start
+        of the attempt), ``dt`` (attempted), ``iterations``, ``residual`` (default: the last of
+        ``residual_history``), ``cutbacks``, ``reason`` (short, into the .sta), ``message``
+        (full text, into the log; default ``reason``).  The .sta ``time`` is the end time the
+        attempt aimed at, ``time + dt``, comparable with the converged rows.
+        """
         reason = str(info.get("reason", "")).strip() or "unknown"
+        history = list(info.get("residual_history", ()))
+        residual = info.get("residual", history[-1] if history else None)
+        t0, dt = info.get("time"), info.get("dt")
+        t_end = None if t0 is None else float(t0) + (float(dt) if dt is not None else 0.0)
         self._sta_row(info.get("step"), info.get("increment"),
                       [info.get("step", ""), info.get("step_name", self.step_name),
-                       info.get("increment", ""), _g(info.get("time")), _g(info.get("dt")),
-                       info.get("iterations", ""), _g(info.get("residual")),
+                       info.get("increment", ""), _g(t_end), _g(dt),
+                       info.get("iterations", ""), _g(residual),
                        info.get("cutbacks", ""), "yes", reason])
-        history = " ".join(f"{x:.3e}" for x in info.get("residual_history", ()))
-        dt = info.get("dt")
+        text = str(info.get("message", "")).strip() or reason
         self._line(f"step {info.get('step', '?')} increment {info.get('increment', '?')} attempt failed"
-                   + (f" (dt {float(dt):.6g})" if dt is not None else "") + f": {reason}"
-                   + (f"; residuals {history}" if history else ""))
+                   + (f" (dt {float(dt):.6g})" if dt is not None else "") + f": {text}"
+                   + (f"; residuals {' '.join(f'{x:.3e}' for x in history)}" if history else ""))
 
     def close(self, status: int, message: str) -> None:
         if getattr(self, "_handler", None) is None:

@@ -1,7 +1,7 @@
 """CSV tables of the output contract: contact points, contact totals, reactions.
 
-Numbers are written with ``%.17g`` (they read back to the same double), one block of rows per
-increment, flushed before returning.
+Numbers are written with ``repr`` (the shortest text that reads back to the same double), one
+block of rows per increment, flushed before returning.
 
 * ``contact.csv``: one row per contact Gauss point, on output increments (``write_fields``),
   unless the step's ``*OUTPUT, CONTACT=NO``.
@@ -33,8 +33,9 @@ REACTIONS_HEADER = ("step", "increment", "time", "nset", "RF1", "RF2")
 
 
 def fmt(values) -> np.ndarray:
-    """Floats -> strings that read back exactly (``%.17g``), element-wise."""
-    return np.char.mod("%.17g", np.asarray(values, float))
+    """Floats -> the shortest strings that read back to the same double (``repr``), element-wise."""
+    a = np.asarray(values, float)
+    return np.array(list(map(repr, a.ravel().tolist())), dtype=object).reshape(a.shape)
 
 
 def trim_rows(path: Path, before: tuple[int, int]) -> None:
@@ -62,6 +63,11 @@ def trim_rows(path: Path, before: tuple[int, int]) -> None:
     with open(tmp, "w", newline="") as fh:
         csv.writer(fh, lineterminator="\n").writerows(kept)
     os.replace(tmp, path)
+
+
+def resuming(writer: Writer) -> bool:
+    """Whether a writer resumes a run: option ``append``, or ``restarting`` set by the controller."""
+    return bool(getattr(writer, "append", False) or getattr(writer, "restarting", False))
 
 
 class CsvFiles:
@@ -113,7 +119,8 @@ class CsvFiles:
 class _CsvWriter(Writer):
     """Opens ``files`` = {attribute: (file name, header)} at start_run, closes them at close.
 
-    Option ``append`` (bool, default False): resume into existing files (see the module doc).
+    Option ``append`` (bool, default False), or the attribute ``restarting`` that the step
+    controller sets before ``start_run``: resume into existing files (see the module doc).
     """
 
     files: dict[str, tuple[str, tuple[str, ...]]] = {}
@@ -123,7 +130,7 @@ class _CsvWriter(Writer):
         self.append = bool(options.get("append", False))
 
     def start_run(self) -> None:
-        self._csv = CsvFiles(self.outdir, self.files, self.append)
+        self._csv = CsvFiles(self.outdir, self.files, resuming(self))
         for attr, out in self._csv.writers.items():
             setattr(self, attr, out)
 

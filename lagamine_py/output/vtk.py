@@ -212,7 +212,8 @@ class VtkWriter(Writer):
         self.pvd_path = self.outdir / f"{self.deck}.pvd"
         self.counter = 0
         self.entries: list[tuple[float, int, str]] = []    # (time, part, file name)
-        self._pending_trim = self.append and self.pvd_path.exists()
+        resuming = self.append or bool(getattr(self, "restarting", False))   # set by the controller
+        self._pending_trim = resuming and self.pvd_path.exists()
         if self._pending_trim:
             self.entries = read_pvd(self.pvd_path)
         else:
@@ -345,7 +346,7 @@ class VtkWriter(Writer):
         lines = ['<?xml version="1.0"?>',
                  '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
                  "  <Collection>"]
-        lines += [f'    <DataSet timestep="{t:.17g}" group="" part="{part}" file={quoteattr(name)}/>'
+        lines += [f'    <DataSet timestep="{t!r}" group="" part="{part}" file={quoteattr(name)}/>'
                   for t, part, name in self.entries]
         lines += ["  </Collection>", "</VTKFile>", ""]
         tmp = self.pvd_path.with_name(self.pvd_path.name + ".tmp")
