@@ -1,0 +1,303 @@
+"""The contact element group (paper section 6): CT3 on the 3-node faces of Q8 elements, and its
+linear counterpart on the 2-node faces of Q4 elements, against a rigid parabolic-arc foundation.
+
+Axes: ``f`` face (contact element), ``q`` Gauss point on the face, ``g`` = ``f*nq + q``
+flattened contact point, ``a`` face node (corner, corner[, mid]), ``i``/``j`` spatial
+component, ``J``/``L`` face DOF ``2a + i``.
+
+Kinematics at a Gauss point P of the deformed face, with ``t = (x_xi, y_xi)`` (faces run in
+the element's counter-clockwise order, so the body lies on their left)::
+
+    e_u = (y_xi, -x_xi)/|t|     outward normal of the body (towards the foundation)
+    e_v = -(x_xi, y_xi)/|t|
+
+Q is where the line (P, e_u) meets the foundation, ``Q = P - d e_u`` (``d > 0``: contact);
+see :mod:`lagamine_py.foundation`.  Points whose line misses the foundation are open (d is
+passed to the law as 0, with zero derivative).
+
+Integration over an increment (paper section 5): the increment is split into ``N =
+law.substeps`` sub-intervals with the nodal positions and the foundation translation moving
+linearly; in sub-interval k the penetration ``d_k`` comes from the projection at the end of
+the sub-interval, ``du_k = d_k - d_{k-1}`` (``d_0`` from the start configuration), and the
+tangential relative displacement ``dv_k = e_v(theta) . (dP_k - dc_k)`` uses the axes at
+``t_{k-1} + theta (t_k - t_{k-1})`` (``theta = law.theta``).
+
+Nodal forces (virtual work, section 6), the group's contribution to the internal side::
+
+    F_ai = sum_q (p e_u + tau e_v)_i |t| N_a W  * (r in axisymmetry, per radian; thickness in
+                                                   plane strain)
+    i.e. Fx = sum (p y_xi - tau x_xi) N W,  Fy = sum (-p x_xi - tau y_xi) N W,
+
+with r the radius of P in the end configuration.  ``K = dF/du_new`` is exact: constitutive
+part (p, tau through d and dv, chained through the sub-intervals in forward mode) plus the
+geometric part (moving face tangent/normal, moving point Q, moving radius).
+
+Chaining the law's derivatives.  The law (``lagamine_py.laws.base.ContactLaw``) returns, per
+sub-interval, derivatives named ``<out>_<in>`` with ``out`` in ``p, tau, lam`` and ``in`` in
+``u`` (du, with d moving with it), ``v`` (dv), ``d`` (d_{k-1} with du fixed, i.e. an explicit
+dependence on d beyond du), ``p``, ``tau``, ``lam`` (old state values).  Missing keys are 0,
+except ``p_d`` which defaults to ``p_u`` (``p_new = KP max(d, 0)`` depends on d only).  So a
+law returning just ``p_u, tau_u, tau_v, tau_tau`` is chained as
+``D tau_k = tau_tau D tau_{k-1} + tau_u D du_k + tau_v D dv_k``.
+"""
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+
+from ..foundation import Foundation
+from ..laws.base import OPEN, ContactLaw
+from .base import Group, GroupResult, StepContext
+from .shapes import gauss_1d, line_shape
+
+__all__ = ["ContactGroup"]
+
+_R = np.array([[0.0, 1.0], [-1.0, 0.0]])      # R t = (t_y, -t_x): right normal
+_OUT = ("p", "tau", "lam")
+
+
+def _unit(t):
+    """|t| (g,), t_hat (g, 2)."""
+    n = np.linalg.norm(t, axis=-1)
+    return n, t / np.where(n > 0, n, 1.0)[:, None]
+
+
+def _de_u_dt(t):
+    """e_u (g, 2) and d e_u / d t (g, 2, 2) for e_u = R t / |t|."""
+    n, th = _unit(t)
+    e_u = th @ _R.T
+    D = (_R[None] - np.einsum("gi,gj->gij", e_u, th)) / n[:, None, None]
+    return e_u, D
+
+
+def _de_v_dt(t):
+    """e_v (g, 2) and d e_v / d t (g, 2, 2) for e_v = -t / |t|."""
+    n, th = _unit(t)
+    D = -(np.eye(2)[None] - np.einsum("gi,gj->gij", th, th)) / n[:, None, None]
+    return -th, D
+
+
+class ContactGroup(Group):
+    """Contact elements on the faces of one surface against one rigid foundation.
+
+    Parameters
+    ----------
+    name : str, the contact pair's name (``"<surface>-><foundation>"``); key of
+        ``ctx.freeze_contact``.
+    face_nodes : (f, nfn) node rows of each face, corner, corner[, mid], in the element's
+        counter-clockwise order (``lagamine_py.elements.shapes.Q8_FACES`` / ``Q4_FACES``).
+    elements : (f,) deck ids of the solid elements owning the faces.
+    faces : (f,) face numbers 1..4.
+    coords0 : (n, 2) reference coordinates of all nodes.
+    foundation : :class:`lagamine_py.foundation.Foundation`.
+    foundation_name : str, key of ``ctx.foundation_old/new``.
+    law : :class:`lagamine_py.laws.base.ContactLaw` (reads ``law.theta``, ``law.substeps``).
+    gauss : 2 or 3 Gauss points per face.
+    axisymmetric : forces per radian (times the radius r of P) instead of times thickness.
+    thickness : plane-strain out-of-plane thickness.
+    """
+
+    def __init__(self, name: str, face_nodes, elements, faces, coords0, foundation: Foundation,
+                 foundation_name: str, law: ContactLaw, gauss: int = 3, axisymmetric: bool = False,
+                 thickness: float = 1.0):
+        self.name = name
+        self.face_nodes = np.asarray(face_nodes, int)
+        nf, nfn = self.face_nodes.shape
+        if nfn not in (2, 3):
+            raise ValueError(f"contact {name!r}: faces have 2 or 3 nodes, not {nfn}")
+        if gauss not in (2, 3):
+            raise ValueError(f"contact {name!r}: GAUSS must be 2 or 3, not {gauss}")
+        self.ids = np.asarray(elements, int)
+        self.faces = np.asarray(faces, int)
+        self.coords0 = np.asarray(coords0, float)
+        self.foundation = foundation
+        self.foundation_name = foundation_name
+        self.law = law
+        self.axisymmetric = bool(axisymmetric)
+        self.thickness = float(thickness)
+        self.nf, self.nfn, self.nq = nf, nfn, int(gauss)
+        self.ng = nf * self.nq
+        self.nd = 2 * nfn
+        self.dofs = (2 * self.face_nodes[:, :, None] + np.arange(2)).reshape(nf, self.nd)
+        xi, self.w = gauss_1d(self.nq)
+        self.N, self.dN = line_shape(nfn, xi)                     # (q, a)
+        # d P_i / d x_J and d t_i / d x_J per Gauss point, tiled over faces: (g, 2, nd)
+        eye = np.eye(2)
+        AP = np.einsum("qa,ij->qiaj", self.N, eye).reshape(self.nq, 2, self.nd)
+        At = np.einsum("qa,ij->qiaj", self.dN, eye).reshape(self.nq, 2, self.nd)
+        self._AP = np.tile(AP, (nf, 1, 1))
+        self._At = np.tile(At, (nf, 1, 1))
+        self._Wg = np.tile(self.w, nf)                            # (g,)
+        self._Ng = np.tile(self.N, (nf, 1))                       # (g, a)
+        try:
+            sig = inspect.signature(law.update)
+            self._law_frozen = ("frozen" in sig.parameters
+                                or any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()))
+        except (TypeError, ValueError):
+            self._law_frozen = False
+
+    # ----------------------------------------------------------------- helpers
+    def init_state(self) -> dict[str, np.ndarray]:
+        return self.law.init_state(self.ng)
+
+    def _face_x(self, u) -> np.ndarray:
+        """Current face node positions (f, a, 2)."""
+        return self.coords0[self.face_nodes] + np.asarray(u, float)[self.face_nodes]
+
+    def _at_points(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """P (g, 2) and t = dx/dxi (g, 2) from face node positions x (f, a, 2)."""
+        P = np.einsum("qa,fai->fqi", self.N, x).reshape(self.ng, 2)
+        t = np.einsum("qa,fai->fqi", self.dN, x).reshape(self.ng, 2)
+        return P, t
+
+    def _translation(self, ctx: StepContext, which: str) -> np.ndarray:
+        table = ctx.foundation_old if which == "old" else ctx.foundation_new
+        return np.asarray(table.get(self.foundation_name, np.zeros(2)), float)
+
+    def _frozen(self, ctx: StepContext):
+        fc = ctx.freeze_contact
+        if isinstance(fc, dict) and self.name in fc and fc[self.name] is not None:
+            return np.asarray(fc[self.name])
+        return None
+
+    def _penetration(self, x, c, scale):
+        """d (g,) and D d / D u_new (g, nd) for positions x (f, a, 2) that move with
+        ``scale`` * u_new.  Points not found: d = 0, derivative 0 (open)."""
+        P, t = self._at_points(x)
+        e_u, de = _de_u_dt(t)
+        pr = self.foundation.project(P, e_u, c)
+        dd_dt = np.einsum("gi,gij->gj", pr.dd_de, de)
+        Dd = scale * (np.einsum("gi,giJ->gJ", pr.dd_dP, self._AP)
+                      + np.einsum("gi,giJ->gJ", dd_dt, self._At))
+        d = np.where(pr.found, pr.d, 0.0)
+        Dd[~pr.found] = 0.0
+        return d, Dd, pr
+
+    def _call_law(self, state, d, du, dv, frozen):
+        if frozen is not None and self._law_frozen:
+            return self.law.update(state, d, du, dv, frozen=frozen)
+        return self.law.update(state, d, du, dv)
+
+    # ----------------------------------------------------------------- compute
+    def _integrate(self, u_new, u_old, state, ctx, tangent):
+        """Run the law over the sub-intervals; returns the end state and D p, D tau (g, nd)."""
+        xo, xn = self._face_x(u_old), self._face_x(u_new)
+        dx = xn - xo
+        co, cn = self._translation(ctx, "old"), self._translation(ctx, "new")
+        nsub = max(int(getattr(self.law, "substeps", 1)), 1)
+        theta = float(getattr(self.law, "theta", 1.0))
+        frozen = self._frozen(ctx)
+        frozen_open = None if frozen is None else (frozen == OPEN)
+
+        d_prev, Dd_prev, _ = self._penetration(xo, co, 0.0)
+        Dd_prev = np.zeros_like(Dd_prev)
+        st = {k: np.array(v, copy=True) for k, v in state.items()}
+        D = {k: np.zeros((self.ng, self.nd)) for k in _OUT}
+        dc = (cn - co) / nsub
+        dP = np.einsum("qa,fai->fqi", self.N, dx).reshape(self.ng, 2) / nsub
+        for k in range(1, nsub + 1):
+            a_k = k / nsub
+            d_k, Dd_k, _ = self._penetration(xo + a_k * dx, co + a_k * (cn - co), a_k)
+            a_th = (k - 1 + theta) / nsub
+            _, t_th = self._at_points(xo + a_th * dx)
+            e_v, dev = _de_v_dt(t_th)
+            rel = dP - dc
+            dv = np.einsum("gi,gi->g", e_v, rel)
+            du = d_k - d_prev
+            new, tan = self._call_law(st, d_k, du, dv, frozen)
+            if tangent:
+                Ddv = (a_th * np.einsum("gi,gij,gjJ->gJ", rel, dev, self._At)
+                       + np.einsum("gi,giJ->gJ", e_v, self._AP) / nsub)
+                D = self._chain(tan, D, Dd_k - Dd_prev, Dd_prev, Ddv)
+            if frozen_open is not None and frozen_open.any():
+                new = dict(new)
+                for key in ("p", "tau"):
+                    new[key] = np.where(frozen_open, 0.0, new[key])
+                for key in ("lam", "slip", "dissip"):
+                    if key in new and key in st:
+                        new[key] = np.where(frozen_open, st[key], new[key])
+                new["status"] = np.where(frozen_open, OPEN, new["status"]).astype(np.asarray(new["status"]).dtype)
+                for key in _OUT:
+                    D[key][frozen_open] = 0.0
+            st = new
+            d_prev, Dd_prev = d_k, Dd_k
+        return st, D
+
+    @staticmethod
+    def _chain(tan, D, Ddu, Dd_old, Ddv):
+        """Forward-mode step: derivatives of (p, tau, lam) after a sub-interval."""
+        out = {}
+        for o in _OUT:
+            acc = np.zeros_like(Ddu)
+            ins = {"u": Ddu, "v": Ddv, "d": Dd_old, "p": D["p"], "tau": D["tau"], "lam": D["lam"]}
+            for i, Dx in ins.items():
+                c = tan.get(f"{o}_{i}")
+                if c is None and o == "p" and i == "d":
+                    c = tan.get("p_u")
+                if c is not None:
+                    acc += np.asarray(c, float)[:, None] * Dx
+            out[o] = acc
+        return out
+
+    def _weights(self, P, t):
+        """Integration weight per point without |t| (which sits in the force vectors):
+        W * thickness (PE) or W * r (AX); and its derivative (g, nd)."""
+        if self.axisymmetric:
+            wt = self._Wg * P[:, 0]
+            Dwt = self._Wg[:, None] * self._AP[:, 0, :]
+        else:
+            wt = self._Wg * self.thickness
+            Dwt = None
+        return wt, Dwt
+
+    def compute(self, u_new, u_old, state, ctx: StepContext, tangent: bool = True) -> GroupResult:
+        """Contact forces ``f`` (f, nd) and ``K = df/du_new`` (f, nd, nd); see the module doc."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            st, D = self._integrate(u_new, u_old, state, ctx, tangent)
+        P, t = self._at_points(self._face_x(u_new))
+        jac = np.linalg.norm(t, axis=-1)
+        p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
+        Rt = t @ _R.T
+        vec = p[:, None] * Rt - tau[:, None] * t                      # (p e_u + tau e_v) |t|
+        wt, Dwt = self._weights(P, t)
+        f = np.einsum("ga,gi,g->gai", self._Ng, vec, wt).reshape(self.nf, self.nq, self.nd).sum(axis=1)
+        failure = None
+        if np.any(jac <= 1e-14 * max(1.0, float(np.abs(self.coords0).max(initial=1.0)))):
+            failure = f"contact {self.name}: degenerate face (zero Jacobian)"
+        elif not (np.all(np.isfinite(f)) and np.all(np.isfinite(p)) and np.all(np.isfinite(tau))):
+            failure = f"contact {self.name}: non-finite contact stresses"
+        K = None
+        if tangent:
+            Dvec = (np.einsum("gi,gJ->giJ", Rt, D["p"]) - np.einsum("gi,gJ->giJ", t, D["tau"])
+                    + p[:, None, None] * np.einsum("ij,gjJ->giJ", _R, self._At)
+                    - tau[:, None, None] * self._At)
+            Kg = np.einsum("ga,giJ,g->gaiJ", self._Ng, Dvec, wt)
+            if Dwt is not None:
+                Kg = Kg + np.einsum("ga,gi,gJ->gaiJ", self._Ng, vec, Dwt)
+            K = Kg.reshape(self.nf, self.nq, self.nd, self.nd).sum(axis=1)
+        return GroupResult(f=f, K=K, state=st, failure=failure)
+
+    # ------------------------------------------------------------------ output
+    def points(self, u_new, state, ctx: StepContext):
+        """Contact points for writers (:class:`lagamine_py.output.base.ContactPoints`):
+        current P, committed (p, tau, slip, lam, status), gap d at the end configuration
+        (NaN where the line misses the foundation), and totals ``P = int p dS``,
+        ``T = int tau dS`` in the current configuration (per unit thickness in plane strain,
+        per radian in axisymmetry)."""
+        from ..output.base import ContactPoints
+        c = self._translation(ctx, "new")
+        x = self._face_x(u_new)
+        P, t = self._at_points(x)
+        e_u, _ = _de_u_dt(t)
+        pr = self.foundation.project(P, e_u, c)
+        dS = self._Wg * np.linalg.norm(t, axis=-1) * (P[:, 0] if self.axisymmetric else 1.0)
+        p = np.asarray(state["p"], float)
+        tau = np.asarray(state["tau"], float)
+        return ContactPoints(
+            name=self.name, element=np.repeat(self.ids, self.nq), face=np.repeat(self.faces, self.nq),
+            gauss=np.tile(np.arange(1, self.nq + 1), self.nf), x=P, p=p, tau=tau,
+            gap=np.where(pr.found, pr.d, np.nan), slip=np.asarray(state.get("slip", np.zeros(self.ng)), float),
+            lam=np.asarray(state.get("lam", np.zeros(self.ng)), float),
+            status=np.asarray(state.get("status", np.zeros(self.ng)), np.int8),
+            P=float(np.sum(p * dS)), T=float(np.sum(tau * dS)))

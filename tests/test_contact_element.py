@@ -1,0 +1,276 @@
+"""The contact element group: orientation, closed-form forces, and the exact tangent against
+central finite differences of the forces in open, stick and slip states."""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from lagamine_py.elements.base import StepContext
+from lagamine_py.elements.contact import ContactGroup
+from lagamine_py.elements.shapes import Q4_FACES, Q8_FACES
+from lagamine_py.foundation import Foundation
+from lagamine_py.laws.base import OPEN, SLIP, STICK, ContactLaw
+
+
+class StandInCoulomb(ContactLaw):
+    """Penalty + Coulomb with constant PHI and B, exact derivatives (test stand-in).
+
+    ``form="d"``: the slip limit uses ``p_new = KP max(d, 0)`` (explicit dependence on d,
+    reported as ``tau_d``); ``form="pold"``: it uses ``p_old + KP du`` (dependence on the old
+    pressure, reported as ``tau_p``).  Both exercise the element's chaining of sub-intervals."""
+
+    def __init__(self, KP=1e3, KT=5e2, PHI=0.3, B=0.0, THETA=1.0, SUBSTEPS=1, form="d"):
+        self.kp, self.kt, self.phi, self.b = KP, KT, PHI, B
+        self.theta, self.substeps, self.form = THETA, SUBSTEPS, form
+        self.calls = []
+
+    def update(self, state, d, du, dv, frozen=None):
+        self.calls.append(None if frozen is None else np.array(frozen))
+        contact = d > 0
+        p = self.kp * np.maximum(d, 0.0)
+        p_u = self.kp * contact
+        tr = state["tau"] + self.kt * dv
+        s = np.sign(tr)
+        if self.form == "d":
+            lim = self.b + self.phi * p
+        else:
+            lim = self.b + self.phi * (state["p"] + self.kp * du)
+        slip = contact & (np.abs(tr) > lim)
+        if frozen is not None:
+            slip = contact & np.where(frozen == SLIP, True, np.where(frozen == STICK, False, slip))
+        stick = contact & ~slip
+        tau = np.where(slip, s * lim, np.where(stick, tr, 0.0))
+        dlam = np.where(slip, (np.abs(tr) - lim) / self.kt, 0.0)
+        z = np.zeros_like(d)
+        tan = {"p_u": p_u, "tau_tau": np.where(stick, 1.0, 0.0), "tau_v": np.where(stick, self.kt, 0.0),
+               "tau_u": np.where(slip, s * self.phi * self.kp, 0.0)}
+        if self.form == "d":
+            tan["tau_d"] = tan["tau_u"]
+        else:
+            tan["tau_p"] = np.where(slip, s * self.phi, 0.0)
+        status = np.where(slip, SLIP, np.where(stick, STICK, OPEN)).astype(np.int8)
+        new = {"p": p, "tau": tau, "lam": state["lam"] + dlam, "slip": state["slip"] + dlam,
+               "dissip": state["dissip"] + dlam * np.abs(tau), "status": status}
+        return new, tan
+
+
+# A curved foundation below the body (travel +x, body on the left = above) and a curved face
+# along its top; the face runs +x, which is the counter-clockwise order of an element above it.
+FOUND = Foundation([[-3.0, 0.1], [-1.0, 0.0], [0.5, 0.02], [1.5, -0.03], [3.0, -0.1]])
+X0 = 2.0     # shift everything right in axisymmetry so that r > 0
+
+
+def _setup(nfn, gauss, ax, theta, substeps, case, form="d"):
+    shift = np.array([X0 if ax else 0.0, 0.0])
+    found = Foundation(FOUND.points + shift)
+    if nfn == 3:
+        coords0 = np.array([[-0.4, 0.05], [0.4, 0.02], [1.2, 0.0], [0.0, 0.06], [0.8, 0.03]]) + shift
+        face_nodes = np.array([[0, 1, 3], [1, 2, 4]])
+    else:
+        coords0 = np.array([[-0.4, 0.05], [0.4, 0.02], [1.2, 0.0]]) + shift
+        face_nodes = np.array([[0, 1], [1, 2]])
+    law = StandInCoulomb(THETA=theta, SUBSTEPS=substeps, form=form)
+    grp = ContactGroup("S->F", face_nodes, [11, 12], [1, 1], coords0, found, "F", law,
+                       gauss=gauss, axisymmetric=ax, thickness=2.5)
+    rng = np.random.default_rng(7 + 3 * nfn + gauss)
+    n = coords0.shape[0]
+    # push the face down onto the foundation (about 0.02..0.04 penetration at the start)
+    u_old = np.tile([0.0, -0.08], (n, 1)) + 0.002 * rng.standard_normal((n, 2))
+    dv = {"open": 0.0, "stick": 1e-5, "slip": 3e-2}[case]
+    du_n = {"open": 0.0, "stick": -5e-4, "slip": -1e-3}[case]
+    u_new = u_old + np.array([dv, du_n]) + 1e-4 * rng.standard_normal((n, 2))
+    if case == "open":
+        u_old = u_old + [0, 0.2]
+        u_new = u_new + [0, 0.2]
+    ctx = StepContext(foundation_old={"F": np.array([0.001, 0.0])},
+                      foundation_new={"F": np.array([0.002, -0.0005])})
+    state = grp.init_state()
+    if case != "open":
+        # committed state: in contact with some friction already, consistent with the start position
+        _, _, pr = grp._penetration(grp._face_x(u_old), ctx.foundation_old["F"], 0.0)
+        state["p"] = law.kp * np.maximum(pr.d, 0.0)
+        state["tau"] = -0.5 * law.phi * state["p"]
+        state["status"][:] = STICK
+    return grp, u_old, u_new, state, ctx
+
+
+def _assemble(grp, K, ndof):
+    A = np.zeros((ndof, ndof))
+    for e in range(K.shape[0]):
+        A[np.ix_(grp.dofs[e], grp.dofs[e])] += K[e]
+    return A
+
+
+def _assemble_f(grp, f, ndof):
+    b = np.zeros(ndof)
+    np.add.at(b, grp.dofs.ravel(), f.ravel())
+    return b
+
+
+def _fd_tangent(grp, u_new, u_old, state, ctx, h=1e-7):
+    ndof = u_new.size
+    Kfd = np.zeros((ndof, ndof))
+    for j in range(ndof):
+        up, um = u_new.copy().ravel(), u_new.copy().ravel()
+        up[j] += h
+        um[j] -= h
+        fp = grp.compute(up.reshape(-1, 2), u_old, state, ctx, tangent=False).f
+        fm = grp.compute(um.reshape(-1, 2), u_old, state, ctx, tangent=False).f
+        Kfd[:, j] = (_assemble_f(grp, fp, ndof) - _assemble_f(grp, fm, ndof)) / (2 * h)
+    return Kfd
+
+
+CASES = list(itertools.product((3, 2), (2, 3), (False, True), (0.0, 0.5, 1.0), (1, 3),
+                                ("open", "stick", "slip")))
+
+
+@pytest.mark.parametrize("nfn,gauss,ax,theta,substeps,case", CASES)
+def test_tangent_matches_finite_differences(nfn, gauss, ax, theta, substeps, case):
+    grp, u_old, u_new, state, ctx = _setup(nfn, gauss, ax, theta, substeps, case)
+    res = grp.compute(u_new, u_old, state, ctx)
+    assert res.failure is None
+    want = {"open": OPEN, "stick": STICK, "slip": SLIP}[case]
+    assert np.all(res.state["status"] == want), res.state["status"]
+    K = _assemble(grp, res.K, u_new.size)
+    Kfd = _fd_tangent(grp, u_new, u_old, state, ctx)
+    if case == "open":
+        assert np.all(res.f == 0) and np.all(K == 0) and np.all(Kfd == 0)
+    else:
+        scale = np.abs(Kfd).max()
+        assert scale > 0
+        assert np.abs(K - Kfd).max() <= 1e-6 * scale
+        # the contact tangent is non-symmetric (paper section 6)
+        assert np.abs(K - K.T).max() > 1e-3 * scale
+
+
+@pytest.mark.parametrize("form", ("d", "pold"))
+@pytest.mark.parametrize("nfn", (2, 3))
+def test_tangent_substeps_with_old_pressure_dependence(form, nfn):
+    """Sub-interval chaining through tau_d (explicit d) and tau_p (old pressure)."""
+    grp, u_old, u_new, state, ctx = _setup(nfn, 3, True, 0.5, 4, "slip", form=form)
+    res = grp.compute(u_new, u_old, state, ctx)
+    assert np.all(res.state["status"] == SLIP)
+    K = _assemble(grp, res.K, u_new.size)
+    Kfd = _fd_tangent(grp, u_new, u_old, state, ctx)
+    assert np.abs(K - Kfd).max() <= 1e-6 * np.abs(Kfd).max()
+
+
+def test_outward_normal_for_counter_clockwise_faces():
+    """e_u = (y_xi, -x_xi)/|J| points out of the element on every face of CCW Q8 and Q4."""
+    q8 = np.array([[0, 0], [2, 0], [2, 1], [0, 1], [1, 0], [2, .5], [1, 1], [0, .5]], float)
+    for coords, faces in ((q8, Q8_FACES), (q8[:4], Q4_FACES)):
+        fn = np.array(faces)
+        grp = ContactGroup("c", fn, [1] * 4, [1, 2, 3, 4], coords, FOUND, "F", StandInCoulomb(), gauss=2)
+        P, t = grp._at_points(grp._face_x(np.zeros_like(coords)))
+        e_u = np.stack([t[:, 1], -t[:, 0]], axis=1) / np.linalg.norm(t, axis=1)[:, None]
+        out = np.einsum("gi,gi->g", e_u, P - coords[:4].mean(axis=0))
+        assert np.all(out > 0.4)
+
+
+def _flat_punch(nfn, ax, dy, slide=0.0, B=0.0, phi=0.3):
+    """Straight face y = 0 on x in [x0, x0+2] pressed by dy into the flat foundation y = 0."""
+    x0 = 1.0 if ax else -1.0
+    coords0 = np.array([[x0, 0.0], [x0 + 2, 0.0], [x0 + 1, 0.0]])[:nfn]
+    found = Foundation([[-10.0, 0.0], [0.0, 0.0], [10.0, 0.0]])
+    law = StandInCoulomb(B=B, PHI=phi)
+    grp = ContactGroup("c", np.arange(nfn)[None], [1], [1], coords0, found, "F", law,
+                       gauss=3, axisymmetric=ax, thickness=2.0)
+    u_new = np.tile([slide, -dy], (nfn, 1))
+    ctx = StepContext(foundation_old={"F": np.zeros(2)}, foundation_new={"F": np.zeros(2)})
+    return grp, u_new, ctx, law, x0
+
+
+@pytest.mark.parametrize("nfn", (2, 3))
+@pytest.mark.parametrize("ax", (False, True))
+def test_flat_punch_pressure_and_forces(nfn, ax):
+    """Uniform penetration d: p = KP d; total normal force = p * area, pointing down (internal
+    side: +p e_u with e_u = -y); consistent nodal loads 1/6, 1/6, 2/3 (3 nodes) or 1/2, 1/2."""
+    dy = 0.01
+    grp, u_new, ctx, law, x0 = _flat_punch(nfn, ax, dy)
+    res = grp.compute(u_new, np.zeros_like(u_new), grp.init_state(), ctx)
+    p = law.kp * dy
+    assert np.allclose(res.state["p"], p)
+    fy = res.f[0, 1::2]
+    fx = res.f[0, 0::2]
+    assert np.allclose(fx, 0.0, atol=1e-12)
+    if ax:
+        total = -p * ((x0 + 2) ** 2 - x0 ** 2) / 2          # per radian: int p r dr
+    else:
+        total = -p * 2.0 * 2.0                               # length 2, thickness 2
+    assert fy.sum() == pytest.approx(total, rel=1e-12)
+    if not ax:
+        share = [1 / 6, 1 / 6, 2 / 3] if nfn == 3 else [0.5, 0.5]
+        assert np.allclose(fy, np.array(share) * total, rtol=1e-12)
+    pts = grp.points(u_new, res.state, ctx)
+    assert pts.P == pytest.approx(-total / (1.0 if ax else 2.0), rel=1e-12)   # no thickness
+    assert np.allclose(pts.gap, dy)
+    assert np.allclose(pts.x[:, 1], -dy)
+
+
+def test_sliding_friction_force_opposes_motion():
+    """Sliding by +x along the face direction (e_v = -x): dv < 0, tau = -phi p; the force the
+    foundation applies on the body is -f (f is on the internal side): it points up (-Fy > 0) and
+    against the motion (-Fx < 0), with |Fx| = phi |Fy| (Coulomb)."""
+    grp, u_new, ctx, law, _ = _flat_punch(3, False, 0.01, slide=0.05)
+    res = grp.compute(u_new, np.zeros_like(u_new), grp.init_state(), ctx)
+    assert np.all(res.state["status"] == SLIP)
+    assert np.allclose(res.state["tau"], -law.phi * law.kp * 0.01, rtol=1e-12)
+    Fx, Fy = res.f[0, 0::2].sum(), res.f[0, 1::2].sum()
+    assert Fx == pytest.approx(-law.phi * Fy, rel=1e-12)
+    assert -Fx < 0 and -Fy > 0
+
+
+def test_moving_foundation_relative_slip():
+    """Moving the foundation with the body gives dv = 0 (no friction); moving the foundation
+    alone by -x is the same relative slip as moving the body by +x."""
+    grp, u_new, ctx, law, _ = _flat_punch(3, False, 0.01, slide=0.0)
+    ctx_move = StepContext(foundation_old={"F": np.zeros(2)}, foundation_new={"F": np.array([-2e-3, 0.0])})
+    res_f = grp.compute(u_new, np.zeros_like(u_new), grp.init_state(), ctx_move)
+    u_body = u_new + [2e-3, 0.0]
+    res_b = grp.compute(u_body, np.zeros_like(u_new), grp.init_state(), ctx)
+    assert np.allclose(res_f.state["tau"], res_b.state["tau"], rtol=1e-12)
+    assert np.all(res_f.state["tau"] < 0)
+    ctx_both = StepContext(foundation_old={"F": np.zeros(2)}, foundation_new={"F": np.array([2e-3, 0.0])})
+    res_0 = grp.compute(u_body, np.zeros_like(u_new), grp.init_state(), ctx_both)
+    assert np.allclose(res_0.state["tau"], 0.0, atol=1e-9)
+
+
+def test_rigid_rotation_of_the_tangent_axes():
+    """A pressed face rotated rigidly about a point of the flat foundation keeps e_u = outward
+    normal: forces stay normal to the rotated face (frictionless, phi = 0)."""
+    grp, u_new, ctx, law, _ = _flat_punch(3, False, 0.01, phi=0.0)
+    a = 0.05
+    Rm = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    x = (grp.coords0 + u_new) @ Rm.T
+    res = grp.compute(x - grp.coords0, np.zeros_like(u_new), grp.init_state(), ctx)
+    F = res.f[0].reshape(-1, 2).sum(axis=0)
+    n_out = Rm @ np.array([0.0, -1.0])
+    assert abs(F @ np.array([-n_out[1], n_out[0]])) < 1e-12 * np.linalg.norm(F)
+    assert F @ n_out > 0
+
+
+def test_frozen_status_is_honoured():
+    """ctx.freeze_contact: frozen open points give no force; stick/slip are passed to the law."""
+    grp, u_old, u_new, state, ctx = _setup(3, 3, False, 1.0, 1, "slip")
+    frozen = np.full(grp.ng, -1, np.int8)
+    frozen[:3] = OPEN
+    frozen[3:] = STICK
+    ctx.freeze_contact = {"S->F": frozen}
+    res = grp.compute(u_new, u_old, state, ctx)
+    assert np.all(res.state["p"][:3] == 0) and np.all(res.state["status"][:3] == OPEN)
+    assert np.all(res.state["status"][3:] == STICK)
+    assert np.array_equal(grp.law.calls[-1], frozen)
+    assert np.all(res.f[0] == 0)                        # face 0 has only frozen-open points
+    K = _assemble(grp, res.K, u_new.size)
+    Kfd = _fd_tangent(grp, u_new, u_old, state, ctx)
+    assert np.abs(K - Kfd).max() <= 1e-6 * np.abs(Kfd).max()
+
+
+def test_dofs_and_state_layout():
+    grp, u_old, u_new, state, ctx = _setup(3, 2, False, 1.0, 1, "stick")
+    assert grp.dofs.tolist() == [[0, 1, 2, 3, 6, 7], [2, 3, 4, 5, 8, 9]]
+    assert grp.init_state()["p"].shape == (4,)
+    pts = grp.points(u_new, state, ctx)
+    assert pts.element.tolist() == [11, 11, 12, 12] and pts.gauss.tolist() == [1, 2, 1, 2]
