@@ -31,8 +31,10 @@ class ContactPoints:
     slip: np.ndarray              # accumulated slip
     lam: np.ndarray
     status: np.ndarray            # int8 OPEN/STICK/SLIP (lagamine_py.laws.base)
-    P: float                      # total normal force (per unit thickness / per radian)
-    T: float                      # total tangential force
+    P: float                      # total normal force: integral of p over the current surface
+    T: float                      # total tangential force: integral of tau
+    A: float = float("nan")       # current area (length x thickness, or per radian) of points in contact
+    F: np.ndarray | None = None   # (2,) resultant force of the foundation on the body (sum of nodal forces)
 
 
 @dataclass

@@ -1,0 +1,54 @@
+"""Run a deck in-process and keep every converged IncrementResult (for residual histories)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from lagamine_py.deck import load_deck
+from lagamine_py.output import default_writers
+from lagamine_py.output.base import Writer
+from lagamine_py.results import RunResults
+from lagamine_py.solver import run
+
+DECKS = Path(__file__).resolve().parents[1] / "decks"
+
+
+class Capture(Writer):
+    params = ()
+
+    def __init__(self):
+        self.results = []
+        self.failures = []
+
+    def increment(self, result):
+        self.results.append(result)
+
+    def failed_attempt(self, info):
+        self.failures.append(info)
+
+
+def run_deck(deck, outdir, parameters=None):
+    model = load_deck(Path(deck), parameters=parameters)
+    cap = Capture()
+    writers = default_writers(Path(outdir), model) + [cap]
+    outcome = run(model, Path(outdir), writers=writers, deck_path=Path(deck))
+    return outcome, cap, RunResults(Path(outdir))
+
+
+def convergence_orders(history):
+    """log(r_{k+1}) / log(r_k) over the last iterations of a Newton residual history."""
+    r = np.asarray(history, float)
+    r = r[r > 0]
+    return np.log(r[1:]) / np.log(r[:-1])
+
+
+def is_quadratic(history, floor=1e-13):
+    """True when the last step above the floor shows an order close to 2 (>= 1.7)."""
+    r = [x for x in history if x > floor]
+    if len(r) < 3:
+        return None
+    # use the two last residuals above the floor, normalised by the first
+    r = np.asarray(r) / r[0]
+    orders = np.log(r[2:]) / np.log(r[1:-1])
+    return float(orders[-1])
