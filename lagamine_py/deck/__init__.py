@@ -1,0 +1,44 @@
+"""The ``.dat`` deck language (see DECKS.md): text -> keyword blocks -> :class:`~lagamine_py.model.Model`.
+
+``load_deck(path)`` parses, builds and validates a deck; every problem found is collected and
+raised at once as one :class:`DeckError` (``file:line: *KEYWORD: message`` per problem), so
+nothing runs on a bad deck.  ``parse_deck(path)`` stops after the first phase (blocks with
+their file and line).  ``reference_markdown()`` writes the keyword reference from the table.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..model import Model
+from .builder import ALIASES, build_model
+from .errors import DeckError, Problem, Problems
+from .grammar import Block, DataRow, parse_deck_blocks
+from .keywords import KEYWORDS, reference_markdown
+
+__all__ = ["load_deck", "parse_deck", "DeckError", "Problem", "Block", "DataRow", "KEYWORDS",
+           "ALIASES", "reference_markdown"]
+
+
+def parse_deck(path, parameters: dict[str, str] | None = None) -> list[Block]:
+    """Keyword blocks of the deck at ``path`` (``*INCLUDE`` expanded, ``<name>`` substituted).
+
+    ``parameters`` overrides values of the deck's ``*PARAMETER`` definitions (NAME -> text).
+    Raises DeckError on text that cannot be read.
+    """
+    problems = Problems()
+    blocks, _ = parse_deck_blocks(path, problems, parameters)
+    problems.raise_if_any()
+    return blocks
+
+
+def load_deck(path, parameters: dict[str, str] | None = None) -> Model:
+    """Parse, build and validate the deck at ``path``; raise one DeckError listing every problem.
+
+    ``parameters`` overrides ``*PARAMETER`` values (NAME -> text), as ``run --param`` and
+    ``sweep`` do.  ``Model.name`` is the deck's file stem.
+    """
+    problems = Problems()
+    blocks, _ = parse_deck_blocks(path, problems, parameters)
+    model = build_model(Path(path).stem, blocks, problems)
+    problems.raise_if_any()
+    return model

@@ -1,0 +1,50 @@
+"""Deck errors: every problem of a deck is collected, then raised at once as one :class:`DeckError`."""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+
+class Problem(NamedTuple):
+    """One problem of a deck: where it is (file, line, keyword) and what was expected."""
+    file: str
+    line: int
+    keyword: str
+    message: str
+
+    def __str__(self) -> str:
+        kw = f" *{self.keyword}:" if self.keyword else ""
+        return f"{self.file}:{self.line}:{kw} {self.message}"
+
+
+class DeckError(Exception):
+    """A deck that cannot run.  ``problems`` is the list of ``(file, line, keyword, message)``
+    items; ``str()`` gives one line per problem, ``file:line: *KEYWORD: message``."""
+
+    def __init__(self, problems):
+        self.problems = [Problem(*p) for p in problems]
+        super().__init__("\n".join(str(p) for p in self.problems))
+
+    @property
+    def items(self) -> list[Problem]:
+        return self.problems
+
+
+class Problems:
+    """Collector of problems; :meth:`raise_if_any` stops with one DeckError holding them all."""
+
+    def __init__(self):
+        self.items: list[Problem] = []
+
+    def add(self, file: str, line: int, keyword: str, message: str) -> None:
+        self.items.append(Problem(str(file), int(line), keyword, message))
+
+    def at(self, where, message: str, line: int | None = None) -> None:
+        """Add a problem at a block (anything with ``file``, ``line``, ``keyword``)."""
+        self.add(where.file, where.line if line is None else line, where.keyword, message)
+
+    def __bool__(self) -> bool:
+        return bool(self.items)
+
+    def raise_if_any(self) -> None:
+        if self.items:
+            raise DeckError(self.items)

@@ -1,0 +1,409 @@
+"""The deck text -> keyword blocks, with (file, line) kept on every block and data line.
+
+The whole text of a file is parsed by one line-aware pyparsing grammar (newline significant):
+each line is a comment (``**``), a keyword line (``*NAME, PARAM=VALUE, FLAG``), a data line
+(comma-separated numbers, names or ``KEY=VALUE`` pairs), free text after ``*HEADING``, or --
+when it fits none of these -- a *bad line*, kept so that every error of the deck is reported
+together (the reason is found by re-parsing that line alone with the strict grammar).
+
+Then :func:`parse_deck` walks the lines in order: ``*PARAMETER`` data lines define parameters,
+``<name>`` in later lines is replaced by its value (as Abaqus does), ``*INCLUDE, INPUT=path``
+is replaced by the lines of that file (path relative to the including file), and the lines are
+grouped into :class:`Block` objects, one per keyword line.  Nothing is evaluated.
+"""
+from __future__ import annotations
+
+import bisect
+import re
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pyparsing as pp
+
+from ..model import Where
+from ..registry import did_you_mean
+from .errors import Problems
+
+_WHITE = " \t\r"   # newline is significant
+
+
+# ---------------------------------------------------------------- tokens of data lines
+
+class Num(float):
+    """A number token; ``text`` is how the deck wrote it (``1.5D3``)."""
+    text: str
+
+    def __new__(cls, text: str):
+        obj = super().__new__(cls, float(text.replace("d", "e").replace("D", "E")))
+        obj.text = text
+        return obj
+
+
+class Name(str):
+    """A name token (node set, surface, face ``S1``, load kind ``P`` ...), as written."""
+
+
+@dataclass(frozen=True)
+class Ref:
+    """A field holding ``<name>`` parameter references, resolved by :func:`parse_deck`."""
+    text: str
+
+
+@dataclass(frozen=True)
+class Pair:
+    """``KEY=VALUE``: ``key`` upper-case, ``value`` a Num, Name or Ref."""
+    key: str
+    value: object
+
+    @property
+    def text(self) -> str:
+        v = self.value
+        return v.text if isinstance(v, (Num, Ref)) else str(v)
+
+
+# ---------------------------------------------------------------- lines and blocks
+
+@dataclass
+class KeywordLine:
+    line: int
+    keyword: str                                  # upper case, single spaces: "CONTACT LAW"
+    params: list[tuple[str, str | None]]          # (NAME upper, raw value or None for a flag)
+
+
+@dataclass
+class DataLine:
+    line: int
+    items: list
+
+
+@dataclass
+class TextLine:
+    line: int
+    text: str
+
+
+@dataclass
+class BadLine:
+    line: int
+    text: str
+
+
+@dataclass
+class DataRow:
+    """One data line of a block, with its own position (it may come from an included file)."""
+    file: str
+    line: int
+    items: list
+
+
+@dataclass
+class Block:
+    """A keyword line and the data lines that follow it."""
+    keyword: str
+    params: dict[str, str | None]
+    file: str
+    line: int
+    data: list[DataRow] = field(default_factory=list)
+    text: list[str] = field(default_factory=list)          # *HEADING free text
+    param_order: list[tuple[str, str | None]] = field(default_factory=list)
+    broken: bool = False      # its keyword line could not be read (already reported)
+
+    @property
+    def where(self) -> Where:
+        return Where(self.file, self.line, self.keyword)
+
+
+# ---------------------------------------------------------------- the grammar
+
+@contextmanager
+def _newline_significant():
+    """Build pyparsing elements that skip only blanks and tabs (restored afterwards)."""
+    old = "".join(sorted(pp.ParserElement.DEFAULT_WHITE_CHARS))
+    pp.ParserElement.set_default_whitespace_chars(_WHITE)
+    try:
+        yield
+    finally:
+        pp.ParserElement.set_default_whitespace_chars(old)
+
+
+def _keyword_name(text: str) -> str:
+    return " ".join(text.lstrip("*").split()).upper()
+
+
+class _Grammar:
+    """The pyparsing pieces; ``deck`` parses a whole file into a list of line objects."""
+
+    def __init__(self):
+        with _newline_significant():
+            self._build()
+
+    def _build(self):
+        self.lineno = None                       # set per parse: loc -> line number
+        nl = pp.Literal("\n").set_name("end of line").suppress()
+        def eol(what):
+            return pp.FollowedBy((pp.Literal("\n") | pp.StringEnd()).set_name(what))
+        comma = pp.Suppress(",").set_name("','")
+
+        number = pp.Regex(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?(?![\w.<>])").set_name("number")
+        number.set_parse_action(lambda t: Num(t[0]))
+        name = pp.Regex(r"[A-Za-z_][\w.\-]*(?![<>])").set_name("name")
+        name.set_parse_action(lambda t: Name(t[0]))
+        ref = pp.Regex(r"[^,=\n<>]*(?:<[A-Za-z_]\w*>[^,=\n<>]*)+").set_name("<parameter>")
+        ref.set_parse_action(lambda t: Ref(t[0].strip()))
+        value = (ref | number | name).set_name("value")
+        key = pp.Regex(r"[A-Za-z_]\w*").set_name("KEY")
+        pair = (key + pp.Suppress("=") + value).set_name("KEY=VALUE")
+        pair.set_parse_action(lambda t: Pair(t[0].upper(), t[1]))
+        item = (pair | value).set_name("number, name or KEY=VALUE")
+        self.item = item
+
+        items = item + pp.ZeroOrMore(comma + item) + pp.Optional(comma)
+        data_line = (items + eol("',' and a number, name or KEY=VALUE, or the end of the line")).set_name("data line")
+        data_line.set_parse_action(self._data_line)
+
+        kw = pp.Regex(r"\*[ \t]*[A-Za-z][\w\-]*(?:[ \t]+[A-Za-z][\w\-]*)*").set_name("*KEYWORD")
+        pname = pp.Regex(r"[A-Za-z_][\w\-]*").set_name("parameter name")
+        pvalue = (pp.QuotedString('"') | pp.Regex(r"[^,=\n\"]*[^,=\s\"]")).set_name("parameter value")
+        param = pp.Group(pname + pp.Optional(pp.Suppress("=") + pvalue)).set_name("NAME=VALUE")
+        kw_line = (kw + pp.ZeroOrMore(comma + param) + pp.Optional(comma)
+                   + eol("', NAME=VALUE' or the end of the line")).set_name("keyword line")
+        kw_line.set_parse_action(self._kw_line)
+
+        comment = pp.Regex(r"\*\*[^\n]*").set_name("comment").suppress()
+        heading = pp.Regex(r"\*[ \t]*HEADING[ \t]*(?=\n|$)", re.IGNORECASE).set_name("*HEADING")
+        heading.set_parse_action(lambda s, loc, t: KeywordLine(self.lineno(loc), "HEADING", []))
+        text = pp.Regex(r"[^*\s][^\n]*").set_name("text")
+        text.set_parse_action(lambda s, loc, t: TextLine(self.lineno(loc), t[0].rstrip()))
+        heading_section = heading + pp.ZeroOrMore(nl + pp.Optional(comment | text) + eol("end of line"))
+
+        bad = pp.Regex(r"[^\n]+").set_name("line")
+        bad.set_parse_action(lambda s, loc, t: BadLine(self.lineno(loc), t[0].rstrip()))
+
+        line = (comment | heading_section | kw_line | data_line | bad).set_name("line")
+        self.deck = (pp.ZeroOrMore(line | nl) + pp.StringEnd()).set_name("deck")
+        self.strict_kw = kw_line + pp.StringEnd()
+        self.strict_data = data_line + pp.StringEnd()
+        self.strict_item = item + pp.StringEnd()
+
+    def _data_line(self, s, loc, t):
+        return DataLine(self.lineno(loc), list(t))
+
+    def _kw_line(self, s, loc, t):
+        params = [(g[0].upper(), g[1].strip() if len(g) > 1 else None) for g in t[1:]]
+        return KeywordLine(self.lineno(loc), _keyword_name(t[0]), params)
+
+    def parse_text(self, text: str) -> list:
+        """Line objects of a whole file's text."""
+        starts = [m.end() for m in re.finditer("\n", text)]
+        self.lineno = lambda loc: bisect.bisect_right(starts, loc) + 1
+        return list(self.deck.parse_string(text, parse_all=True))
+
+    def why_bad(self, text: str) -> str:
+        """The reason a line fits no form, from the strict grammar of what it looks like."""
+        self.lineno = lambda loc: 1
+        strict = self.strict_kw if text.lstrip().startswith("*") else self.strict_data
+        what = "keyword line" if strict is self.strict_kw else "data line"
+        try:
+            strict.parse_string(text, parse_all=True)
+        except pp.ParseBaseException as exc:
+            found = text[exc.loc:exc.loc + 12]
+            return f"cannot read this {what}: {exc.msg[:1].lower() + exc.msg[1:]} at column {exc.col}" + \
+                   (f" (found {found!r})" if found else "")
+        return f"cannot read this {what}"
+
+    def parse_item(self, text: str):
+        """A single data field (after parameter substitution): Num, Name or Pair."""
+        return self.strict_item.parse_string(text, parse_all=True)[0]
+
+
+GRAMMAR = _Grammar()
+
+
+# ---------------------------------------------------------------- parameters, includes, blocks
+
+_REF = re.compile(r"<([A-Za-z_]\w*)>")
+
+
+class _Reader:
+    """Walks the lines of a deck and its includes in order, substituting parameters."""
+
+    def __init__(self, problems: Problems, overrides: dict[str, str] | None):
+        self.problems = problems
+        self.params: dict[str, str] = {}            # NAME -> value text
+        self.overrides = {k.upper(): str(v) for k, v in (overrides or {}).items()}
+        self.used_overrides: set[str] = set()
+        self.lines: list[tuple[str, object]] = []   # (file, line object)
+        self.keyword = ""                            # keyword whose data lines are being read
+
+    def substitute(self, text: str, file: str, line: int, keyword: str, strict=True) -> str | None:
+        """``text`` with ``<name>`` replaced; None (and a problem) if a name is undefined."""
+        bad = []
+
+        def repl(m):
+            key = m.group(1).upper()
+            if key in self.params:
+                return self.params[key]
+            bad.append(key)
+            return m.group(0)
+
+        out = _REF.sub(repl, text)
+        if bad and strict:
+            for key in bad:
+                self.problems.add(file, line, keyword,
+                                  f"parameter <{key}> is not defined by an earlier *PARAMETER"
+                                  f"{did_you_mean(key, self.params)}")
+            return None
+        return out
+
+    def read(self, path: Path, label: str, stack: tuple[Path, ...]) -> None:
+        try:
+            text = path.read_text(encoding="utf-8", errors="replace")
+        except OSError as exc:
+            self.problems.add(label, 0, "", f"cannot read the deck: {exc.strerror or exc}")
+            return
+        try:
+            objs = GRAMMAR.parse_text(text)
+        except pp.ParseBaseException as exc:     # the grammar accepts any text; kept as a guard
+            self.problems.add(label, exc.lineno, "", f"cannot read the deck: {exc.msg}")
+            return
+        for obj in objs:
+            keyword = self.keyword
+            if isinstance(obj, KeywordLine):
+                if obj.keyword != "INCLUDE":    # after an include, data goes on with its last keyword
+                    self.keyword = obj.keyword
+                if not self._keyword(obj, path, label, stack):
+                    continue
+            elif isinstance(obj, DataLine):
+                obj = self._data(obj, label, keyword)
+                if obj is None:
+                    continue
+                if keyword == "PARAMETER":
+                    self._define(obj, label)
+            elif isinstance(obj, BadLine):
+                self.keyword = _bad_keyword(obj.text) or keyword
+            elif isinstance(obj, TextLine):
+                obj = TextLine(obj.line, self.substitute(obj.text, label, obj.line, keyword, strict=False))
+            self.lines.append((label, obj))
+
+    def _keyword(self, kl: KeywordLine, path: Path, label: str, stack) -> bool:
+        """Substitute in parameter values; expand *INCLUDE.  False if the line is consumed."""
+        params = []
+        for name, value in kl.params:
+            if value is not None and "<" in value:
+                value = self.substitute(value, label, kl.line, kl.keyword)
+                if value is None:
+                    value = ""
+            params.append((name, value))
+        kl.params = params
+        if kl.keyword != "INCLUDE":
+            return True
+        given = dict(params)
+        unknown = [n for n in given if n != "INPUT"]
+        for n in unknown:
+            self.problems.add(label, kl.line, "INCLUDE", f"unknown parameter {n}{did_you_mean(n, ['INPUT'])}; "
+                                                       f"expected INPUT")
+        rel = given.get("INPUT")
+        if not rel:
+            if "INPUT" in given or not unknown:
+                self.problems.add(label, kl.line, "INCLUDE", "missing required parameter INPUT=path")
+            return False
+        target = (path.parent / rel)
+        shown = str(Path(label).parent / rel)
+        if not target.is_file():
+            self.problems.add(label, kl.line, "INCLUDE", f"included file {shown} does not exist")
+            return False
+        if any(target.resolve() == p for p in stack):
+            self.problems.add(label, kl.line, "INCLUDE",
+                              f"{shown} includes itself (directly or through other *INCLUDE)")
+            return False
+        self.read(target, shown, stack + (target.resolve(),))
+        return False
+
+    def _data(self, dl: DataLine, label: str, keyword: str):
+        """Resolve Ref fields and Pair values to typed tokens; None if one cannot be."""
+        items, ok = [], True
+        for it in dl.items:
+            if isinstance(it, Pair) and isinstance(it.value, Ref):
+                v = self._resolve(it.value, label, dl.line, keyword, value_only=True)
+                ok &= v is not None
+                items.append(Pair(it.key, v))
+            elif isinstance(it, Ref):
+                v = self._resolve(it, label, dl.line, keyword)
+                ok &= v is not None
+                items.append(v)
+            else:
+                items.append(it)
+        return DataLine(dl.line, items) if ok else None
+
+    def _resolve(self, ref: Ref, label, line, keyword, value_only=False):
+        text = self.substitute(ref.text, label, line, keyword)
+        if text is None:
+            return None
+        try:
+            tok = GRAMMAR.parse_item(text)
+        except pp.ParseBaseException:
+            tok = None
+        if tok is None or (value_only and isinstance(tok, Pair)):
+            self.problems.add(label, line, keyword, f"{ref.text} gives {text!r}, which is not a "
+                                                    f"number{'' if value_only else ', a name or KEY=VALUE'}")
+            return None
+        return tok
+
+    def _define(self, dl: DataLine, label: str) -> None:
+        for it in dl.items:
+            if not isinstance(it, Pair):
+                continue    # reported by the builder (the keyword table wants NAME = value)
+            if it.key in self.overrides:
+                self.used_overrides.add(it.key)
+                self.params[it.key] = self.overrides[it.key]
+            else:
+                self.params[it.key] = it.text
+
+
+def _bad_keyword(text: str) -> str | None:
+    """The keyword of an unreadable keyword line (None for a data line)."""
+    m = re.match(r"\s*\*([^,=]*)", text)
+    return (_keyword_name(m.group(1)) or "?") if m else None
+
+
+def _group(lines, problems: Problems) -> list[Block]:
+    """Group line objects into blocks; data before any keyword is an error."""
+    blocks: list[Block] = []
+    for file, obj in lines:
+        if isinstance(obj, KeywordLine):
+            params = {}
+            for name, value in obj.params:
+                if name in params:
+                    problems.add(file, obj.line, obj.keyword, f"parameter {name} is given twice")
+                params[name] = value
+            blocks.append(Block(obj.keyword, params, file, obj.line, param_order=list(obj.params)))
+        elif isinstance(obj, BadLine):
+            kw = _bad_keyword(obj.text)
+            if kw is None:
+                problems.add(file, obj.line, blocks[-1].keyword if blocks else "", GRAMMAR.why_bad(obj.text))
+            else:   # its data lines go with it, unread: one message for the keyword line
+                problems.add(file, obj.line, kw, GRAMMAR.why_bad(obj.text))
+                blocks.append(Block(kw, {}, file, obj.line, broken=True))
+        elif not blocks:
+            problems.add(file, obj.line, "", "data line outside any keyword: a data line must follow "
+                                             "a keyword line such as *NODE")
+        elif isinstance(obj, TextLine):
+            blk = blocks[-1]
+            if blk.keyword == "HEADING":
+                blk.text.append(obj.text)
+        else:
+            blocks[-1].data.append(DataRow(file, obj.line, obj.items))
+    return blocks
+
+
+def parse_deck_blocks(path, problems: Problems, parameters: dict[str, str] | None = None):
+    """Blocks of the deck at ``path`` (includes expanded, parameters substituted), and the
+    parameter values (NAME -> text).  Problems go to ``problems``."""
+    path = Path(path)
+    reader = _Reader(problems, parameters)
+    reader.read(path, str(path), (path.resolve(),))
+    for key in sorted(set(reader.overrides) - reader.used_overrides):
+        problems.add(str(path), 1, "PARAMETER", f"parameter {key} given to override is not defined by a "
+                                                f"*PARAMETER of the deck{did_you_mean(key, reader.params)}")
+    return _group(reader.lines, problems), dict(reader.params)
