@@ -133,10 +133,11 @@ class SpluSolver(LinearSolver):
             self.lu = spla.splu(At, permc_spec="MMD_AT_PLUS_A")
         except RuntimeError:                # "Factor is exactly singular"
             raise SingularMatrixError(_exact_singular_dofs(At, scale), "zero pivot") from None
-        pivots = np.abs(self.lu.U.diagonal())
+        # Pr A Pc = L U with Pc[j, perm_c[j]] = 1: original column j has pivot U[perm_c[j]]
+        pivots = np.abs(self.lu.U.diagonal())[self.lu.perm_c]
         small = ~(pivots > PIVOT_RTOL * scale)          # also catches NaN
         if small.any():
-            bad = self.lu.perm_c[np.flatnonzero(small)]
+            bad = np.flatnonzero(small)
             raise SingularMatrixError(np.union1d(bad, _suspects(A)), "zero pivot")
 
     def solve(self, b: np.ndarray) -> np.ndarray:
@@ -152,8 +153,8 @@ def _exact_singular_dofs(At: sp.csc_matrix, scale: float) -> np.ndarray:
                        permc_spec="MMD_AT_PLUS_A")
     except RuntimeError:
         return _suspects(At.T.tocsr())
-    pivots = np.abs(lu.U.diagonal())
-    return np.union1d(lu.perm_c[np.flatnonzero(pivots <= 1e3 * shift)], _suspects(At.T.tocsr()))
+    pivots = np.abs(lu.U.diagonal())[lu.perm_c]
+    return np.union1d(np.flatnonzero(pivots <= 1e3 * shift), _suspects(At.T.tocsr()))
 
 
 def _suspects(A: sp.csr_matrix) -> np.ndarray:

@@ -1,0 +1,238 @@
+"""Full Newton-Raphson on one increment, with the assembled (non-symmetric) tangent.
+
+Convergence (tolerances from ``*CONTROLS``, defaults in :mod:`lagamine_py.solver.controls`):
+
+* force: ``|R_f| / max(|F_ext|, |RF|, max_g |f_g|, floor) <= RTOL``, ``R_f`` the residual at the
+  free DOFs, ``RF`` the reactions, ``f_g`` each group's assembled force vector (so a body loaded
+  by pressure only, or by imposed displacements only, still has a meaningful scale), ``floor`` a
+  small fraction of the largest scale of earlier increments (unloading to zero);
+* energy: ``|du_f . r_f| <= ETOL * (same at the first iteration)``, ``r_f`` the right-hand side
+  that produced ``du_f``.  It is an *alternative* test: it lets an increment whose force scale
+  degenerates still converge; as ``energy ~ |R|^2`` it is as strict as the force test.
+
+Each iteration's norms go to the ``lagamine_py.solver`` logger (quadratic convergence shows
+there).  Failures are typed (:class:`IterationLimit`, :class:`DivergingResidual`,
+:class:`NotANumber`, :class:`GroupFailure`, and ``SingularMatrixError`` from
+:mod:`~lagamine_py.solver.linear`); the step controller catches them and cuts back.
+
+Imposed DOFs: the first iteration solves ``K_ff du_f = -R_f - K_fc du_c`` with ``du_c`` the
+increment of the imposed values, later ones ``K_ff du_f = -R_f`` (``du_c = 0``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .linear import SingularMatrixError
+
+log = logging.getLogger("lagamine_py.solver")
+
+DIVERGED_REL = 1e10          # a relative residual above this is a blow-up
+FLOOR_FRACTION = 1e-6        # floor of the force scale, times the largest earlier scale
+
+
+class ConvergenceFailure(Exception):
+    """Base of the typed failures of an increment; ``reason`` is short, ``history`` the
+    relative residuals of the attempt."""
+
+    reason = "failed"
+
+    def __init__(self, message: str, history: list[float] | None = None):
+        super().__init__(message)
+        self.history = list(history or [])
+
+
+class IterationLimit(ConvergenceFailure):
+    reason = "iteration limit"
+
+
+class DivergingResidual(ConvergenceFailure):
+    reason = "diverging residual"
+
+
+class NotANumber(ConvergenceFailure):
+    reason = "NaN"
+
+
+class GroupFailure(ConvergenceFailure):
+    """A group reported ``failure`` (negative Jacobian, return mapping...)."""
+    reason = "element failure"
+
+
+@dataclass
+class Settings:
+    rtol: float = 1e-8
+    etol: float = 1e-14
+    maxit: int = 25
+    linesearch: bool = False
+    flipflop: int = 4
+
+    @classmethod
+    def from_controls(cls, controls: dict[str, Any]) -> "Settings":
+        return cls(rtol=float(controls["RTOL"]), etol=float(controls["ETOL"]),
+                   maxit=int(controls["MAXIT"]), linesearch=bool(controls["LINESEARCH"]),
+                   flipflop=int(controls["FLIPFLOP"]))
+
+
+@dataclass
+class Converged:
+    u: np.ndarray                  # (ndof,) displacement at convergence
+    states: list[dict]             # trial states of the groups at u (to commit)
+    f_int: np.ndarray              # (ndof,) assembled internal force at u
+    iterations: int                # linear solves performed
+    residual: float                # final relative force residual
+    scale: float                   # force scale used by the test
+    history: list[float] = field(default_factory=list)
+
+
+def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict], ctx,
+                    u_c: np.ndarray, f_ext: np.ndarray, settings: Settings,
+                    floor: float = 0.0) -> Converged:
+    """Solve one increment.
+
+    Parameters
+    ----------
+    problem : object with ``evaluate(u_new, u_old, states, ctx, tangent) -> Evaluation``
+        (``f_int`` (ndof,), ``data`` CSR data or None, ``states``, ``scale``), see
+        :class:`lagamine_py.solver.problem.Problem`.
+    solver : LinearSolver plugin instance.
+    free : :class:`lagamine_py.solver.linear.FreeDofs` of the constrained set.
+    u_old : (ndof,) displacement at the start of the increment.
+    states : committed group states at the start of the increment.
+    ctx : StepContext of the increment.
+    u_c : (c,) imposed values at the end of the increment, at ``free.constrained``.
+    f_ext : (ndof,) external nodal forces at the end of the increment.
+    floor : absolute floor of the force scale.
+    """
+    c = free.constrained
+    u = np.array(u_old, float)
+    du_imposed = np.zeros_like(u)
+    du_imposed[c] = u_c - u[c]
+    imposing = bool(np.any(du_imposed[c] != 0.0))
+    tracker = _FlipFlop(problem, settings.flipflop)
+    ctx_k = ctx
+    ev = problem.evaluate(u, u_old, states, ctx_k, True)
+    history: list[float] = []
+    energy0 = None
+    for k in range(settings.maxit + 1):
+        R = ev.f_int - f_ext
+        Rf = R[free.free]
+        scale = max(float(np.linalg.norm(f_ext)), float(np.linalg.norm(R[c])), ev.scale, floor,
+                    1e-300)
+        rel = float(np.linalg.norm(Rf)) / scale
+        history.append(rel)
+        if not np.isfinite(rel):
+            raise NotANumber(f"non-finite residual at iteration {k}", history)
+        if not imposing and rel <= settings.rtol:
+            log.info("    iter %2d  |R|/F = %.3e  converged", k, rel)
+            return Converged(u, ev.states, ev.f_int, k, rel, scale, history)
+        if k == settings.maxit:
+            raise IterationLimit(f"no convergence in {settings.maxit} iterations "
+                                 f"(|R|/F = {rel:.3e})", history)
+        _check_divergence(history)
+        rhs = -Rf - (free.kfc_dot(ev.data, du_imposed) if imposing else 0.0)
+        du_f = _linear_solve(solver, free, ev.data, rhs)
+        energy = abs(float(du_f @ rhs))
+        log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
+        if not np.all(np.isfinite(du_f)):
+            raise NotANumber(f"non-finite correction at iteration {k}", history)
+        du = np.zeros_like(u)
+        du[free.free] = du_f
+        du[c] = du_imposed[c]
+        if energy0 is None:
+            energy0 = energy
+        elif energy <= settings.etol * energy0:
+            # converged in energy: take this last (tiny) correction, states consistent with it
+            u = u + du
+            ev = problem.evaluate(u, u_old, states, ctx_k, False)
+            R = ev.f_int - f_ext
+            rel = float(np.linalg.norm(R[free.free])) / scale
+            history.append(rel)
+            log.info("    iter %2d  |R|/F = %.3e  converged (energy)", k + 1, rel)
+            return Converged(u, ev.states, ev.f_int, k + 1, rel, scale, history)
+        ctx_k = tracker.context(ctx, ev.states)
+        if settings.linesearch and not imposing:
+            u, ev = _line_search(problem, u, du, u_old, states, ctx_k, f_ext, free, rhs, du_f)
+        else:
+            u = u + du
+            ev = problem.evaluate(u, u_old, states, ctx_k, True)
+        imposing = False
+        du_imposed[:] = 0.0
+    raise AssertionError("unreachable")
+
+
+def _linear_solve(solver, free, data, rhs):
+    try:
+        solver.factor(free.kff(data))
+    except SingularMatrixError as exc:
+        raise SingularMatrixError(free.free[exc.dofs], exc.detail) from None
+    return solver.solve(rhs)
+
+
+def _check_divergence(history: list[float]) -> None:
+    rel = history[-1]
+    if rel > DIVERGED_REL:
+        raise DivergingResidual(f"residual blew up (|R|/F = {rel:.3e})", history)
+    if len(history) >= 5 and all(history[-i] > history[-i - 1] for i in (1, 2, 3)) \
+            and rel > history[0]:
+        raise DivergingResidual(f"residual grew over 3 iterations (|R|/F = {rel:.3e})", history)
+
+
+def _line_search(problem, u, du, u_old, states, ctx, f_ext, free, rhs, du_f, tries: int = 5):
+    """Backtracking on the energy ``g(s) = du_f . R_f(u + s du)``: accept when
+    ``|g(s)| <= 0.8 |g(0)|``, else interpolate the zero of g (clamped to [0.1, 0.5] s)."""
+    g0 = -float(du_f @ rhs)               # du_f . R_f(u)
+    ev = problem.evaluate(u + du, u_old, states, ctx, True)
+    g = float(du_f @ (ev.f_int - f_ext)[free.free])
+    s = 1.0
+    for _ in range(tries):
+        if not np.isfinite(g) or abs(g) > 0.8 * abs(g0):
+            s_new = s * g0 / (g0 - g) if np.isfinite(g) and g0 != g else 0.5 * s
+            s = float(np.clip(s_new, 0.1 * s, 0.5 * s))
+            ev = problem.evaluate(u + s * du, u_old, states, ctx, False)
+            g = float(du_f @ (ev.f_int - f_ext)[free.free])
+            log.info("      line search s = %.3f", s)
+        else:
+            break
+    if s != 1.0:
+        ev = problem.evaluate(u + s * du, u_old, states, ctx, True)
+    return u + s * du, ev
+
+
+class _FlipFlop:
+    """Counts the status switches of contact points over the iterations of one increment and
+    freezes the points that switched ``limit`` times.
+
+    ``ctx.freeze_contact`` becomes ``{group_name: (g,) int8}`` with -1 for free points and the
+    status to hold otherwise (None while nothing is frozen)."""
+
+    def __init__(self, problem, limit: int):
+        self.limit = limit
+        self.names = getattr(problem, "group_names", None)
+        self.last: dict[int, np.ndarray] = {}
+        self.count: dict[int, np.ndarray] = {}
+        self.frozen: dict[int, np.ndarray] = {}
+
+    def context(self, ctx, states):
+        for k, st in enumerate(states):
+            status = st.get("status") if isinstance(st, dict) else None
+            if status is None:
+                continue
+            status = np.asarray(status).ravel()
+            if k in self.last and self.last[k].shape == status.shape:
+                self.count[k] = self.count.get(k, 0) + (status != self.last[k])
+                hit = (self.count[k] >= self.limit)
+                if hit.any():
+                    fz = self.frozen.setdefault(k, np.full(status.shape, -1, np.int8))
+                    newly = hit & (fz < 0)
+                    fz[newly] = status[newly]
+            self.last[k] = status.copy()
+        if not self.frozen:
+            return ctx
+        name = (lambda k: self.names[k]) if self.names else str
+        return dataclasses.replace(ctx, freeze_contact={name(k): v.copy()
+                                                        for k, v in self.frozen.items()})

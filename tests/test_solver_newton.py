@@ -1,0 +1,131 @@
+"""Newton on one increment, with fake spring groups whose tangent is exact."""
+import numpy as np
+import pytest
+
+from lagamine_py.elements.base import StepContext
+from lagamine_py.solver.linear import FreeDofs, SingularMatrixError, SpluSolver
+from lagamine_py.solver.newton import (DivergingResidual, GroupFailure, IterationLimit,
+                                       NotANumber, Settings, solve_increment)
+
+from test_solver_fakes import GROUND, Atan, Failing, PlasticSprings, Springs, make_model, make_problem
+
+
+def setup(groups, nnodes, constrained, **kw):
+    model = make_model(nnodes, [])
+    problem = make_problem(model, groups)
+    free = FreeDofs(problem.pattern, np.asarray(constrained, np.int64))
+    return problem, free
+
+
+def cubic_chain():
+    """x DOFs 0, 2, 4 of nodes 0..2 on a chain of cubic springs from the ground;
+    y DOFs carry linear springs to the ground (kept out of the way)."""
+    return [Springs([[GROUND, 0], [0, 2], [2, 4]], [1.0, 2.0, 1.5], a=2.0),
+            Springs([[GROUND, 1], [GROUND, 3], [GROUND, 5]], 1.0)]
+
+
+def test_quadratic_convergence_and_exact_solution():
+    problem, free = setup(cubic_chain(), 3, [])
+    F = 3.0
+    f_ext = np.zeros(6)
+    f_ext[4] = F
+    conv = solve_increment(problem, SpluSolver(), free, np.zeros(6), problem.init_states(),
+                           StepContext(), np.zeros(0), f_ext, Settings(rtol=1e-13))
+    # every spring of the chain carries F: k (d + a d^3) = F, solved independently
+    for k in (1.0, 2.0, 1.5):
+        roots = np.roots([2.0 * k, 0.0, k, -F])
+        d = roots[np.abs(roots.imag) < 1e-12].real[0]
+        assert k * (d + 2 * d**3) == pytest.approx(F)
+    u = conv.u
+    d = np.array([u[0], u[2] - u[0], u[4] - u[2]])
+    assert np.allclose(np.array([1.0, 2.0, 1.5]) * (d + 2 * d**3), F, rtol=1e-12)
+    r = np.array(conv.history)
+    # the last steps, once in the basin: log r_{k+1} / log r_k -> 2
+    tail = r[r < 1e-2]
+    assert len(tail) >= 3
+    ratios = np.log(tail[1:]) / np.log(tail[:-1])
+    assert ratios[-2] == pytest.approx(2.0, abs=0.35)
+
+
+def test_linear_problem_converges_in_one_iteration_with_imposed_displacement():
+    groups = [Springs([[0, 2], [2, 4]], [1.0, 3.0]), Springs([[GROUND, 1], [GROUND, 3], [GROUND, 5]], 1.0)]
+    problem, free = setup(groups, 3, [0, 4])
+    u_c = np.array([0.0, 1.0])
+    conv = solve_increment(problem, SpluSolver(), free, np.zeros(6), problem.init_states(),
+                           StepContext(), u_c, np.zeros(6), Settings())
+    # springs in series 1 and 3: u2 = k2 / (k1 + k2) * 1
+    assert conv.u[2] == pytest.approx(0.75, rel=1e-14)
+    assert conv.iterations == 1
+    # reaction at DOF 4: series stiffness 0.75
+    assert (conv.f_int)[4] == pytest.approx(0.75, rel=1e-13)
+
+
+def test_iteration_limit():
+    problem, free = setup(cubic_chain(), 3, [])
+    f_ext = np.zeros(6)
+    f_ext[4] = 50.0
+    with pytest.raises(IterationLimit) as err:
+        solve_increment(problem, SpluSolver(), free, np.zeros(6), problem.init_states(),
+                        StepContext(), np.zeros(0), f_ext, Settings(maxit=3))
+    assert len(err.value.history) == 4
+
+
+def test_group_failure_and_nan_are_typed():
+    base = cubic_chain()
+    failing = Failing(base[0], lambda ctx, u: "negative Jacobian in element 7")
+    problem, free = setup([failing, base[1]], 3, [])
+    f_ext = np.zeros(6)
+    f_ext[4] = 1.0
+    with pytest.raises(GroupFailure, match="negative Jacobian in element 7"):
+        solve_increment(problem, SpluSolver(), free, np.zeros(6), problem.init_states(),
+                        StepContext(), np.zeros(0), f_ext, Settings())
+    f_ext[4] = np.nan
+    problem, free = setup(cubic_chain(), 3, [])
+    with pytest.raises(NotANumber):
+        solve_increment(problem, SpluSolver(), free, np.zeros(6), problem.init_states(),
+                        StepContext(), np.zeros(0), f_ext, Settings())
+
+
+def test_singular_tangent_names_global_dofs():
+    """y DOFs of node 1 and 2 have no spring: the message names them (global numbering)."""
+    groups = [Springs([[GROUND, 0], [0, 2], [2, 4]], 1.0), Springs([[GROUND, 1]], 1.0)]
+    problem, free = setup(groups, 3, [])
+    f_ext = np.zeros(6)
+    f_ext[4] = 1.0
+    with pytest.raises(SingularMatrixError) as err:
+        solve_increment(problem, SpluSolver(), free, np.zeros(6), problem.init_states(),
+                        StepContext(), np.zeros(0), f_ext, Settings())
+    assert set(err.value.dofs) == {3, 5}
+    assert "node 20 y" in err.value.describe(np.array([10, 20, 30]))
+
+
+def atan_problem():
+    groups = [Atan([[GROUND, 0]], 1.0), Springs([[GROUND, 1]], 1.0)]
+    return setup(groups, 1, [])
+
+
+def test_line_search_rescues_a_diverging_newton():
+    """atan(u) = 0.5 from u = 3: plain Newton overshoots further and further (a typed failure);
+    with the backtracking line search it converges to u = tan(0.5)."""
+    problem, free = atan_problem()
+    u0 = np.array([3.0, 0.0])
+    f_ext = np.array([0.5, 0.0])
+    with pytest.raises((DivergingResidual, IterationLimit, NotANumber, SingularMatrixError)):
+        solve_increment(problem, SpluSolver(), free, u0, problem.init_states(), StepContext(),
+                        np.zeros(0), f_ext, Settings(maxit=10))
+    conv = solve_increment(problem, SpluSolver(), free, u0, problem.init_states(), StepContext(),
+                           np.zeros(0), f_ext, Settings(maxit=30, linesearch=True))
+    assert conv.u[0] == pytest.approx(np.tan(0.5), rel=1e-10)
+
+
+def test_trial_state_not_committed_and_returned():
+    """The committed state passed in is never modified; the converged trial state is returned."""
+    groups = [PlasticSprings([[GROUND, 0]], 10.0, fy=1.0, H=5.0), Springs([[GROUND, 1]], 1.0)]
+    problem, free = setup(groups, 1, [0])
+    states = problem.init_states()
+    conv = solve_increment(problem, SpluSolver(), free, np.zeros(2), states, StepContext(),
+                           np.array([0.4]), np.zeros(2), Settings())
+    assert np.all(states[0]["dp"] == 0.0)
+    # plastic elongation: d - f/k with f = fy + H k/(k+H) (d - fy/k)
+    f = 1.0 + 10 * 5 / 15 * (0.4 - 0.1)
+    assert conv.states[0]["dp"][0] == pytest.approx(0.4 - f / 10.0, rel=1e-12)
