@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from ..registry import register
 from .base import IncrementResult, Writer
+from .tables import resuming, trim_rows
 
 
 @register("writers", "DISPLACEMENTS")
@@ -17,14 +18,30 @@ class DisplacementsWriter(Writer):
 
     params = ()
 
+    def __init__(self, outdir, model, append: bool = False, **options):
+        super().__init__(outdir, model)
+        self.append = append
+
     def start_run(self) -> None:
         self.outdir.mkdir(parents=True, exist_ok=True)
-        self._fh = open(self.outdir / "displacements.csv", "w")
-        self._fh.write("step,increment,time,node,x,y,u1,u2\n")
+        path = self.outdir / "displacements.csv"
+        self._resume = resuming(self) and path.exists()
+        self._fh = open(path, "a" if self._resume else "w")
+        if not self._resume:
+            self._fh.write("step,increment,time,node,x,y,u1,u2\n")
         self._fh.flush()
         self._pending: IncrementResult | None = None
 
+    def _trim_once(self, r: IncrementResult) -> None:
+        """On resume, rows of the step being resumed (written by a clean stop) go."""
+        if self._resume:
+            self._fh.close()
+            trim_rows(self.outdir / "displacements.csv", (r.step, 0))
+            self._fh = open(self.outdir / "displacements.csv", "a")
+            self._resume = False
+
     def increment(self, result: IncrementResult) -> None:
+        self._trim_once(result)
         if self._pending is not None and self._pending.step != result.step:
             self._write(self._pending)
         self._pending = result
