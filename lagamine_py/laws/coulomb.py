@@ -1,0 +1,280 @@
+"""The paper's elasto-plastic friction law in (p, tau): the COULOMB contact-law plugin.
+
+Godinas, Charlier & Cescotto, sections 2-5 (DESIGN.md section 1).  Per contact point ``g``:
+
+* yield ``f = |tau| - B(lam) - phi(lam) p``, with ``phi(lam) = PHI + HPHI lam`` and
+  ``B(lam) = B + HB lam``, each clipped at >= 0 (slope 0 once clipped);
+* elastic ``dp = KP du``, ``dtau = KT dv``;
+* non-associated flow ``g = |tau|``: ``dv_p = dlam sgn(tau)``, ``du_p = 0``, so the normal
+  law is exact, ``p = KP max(d, 0)``;
+* plastic loading (paper eq. 10), ``H = B' + phi' p``::
+
+      dtau = (phi KP KT sgn(tau) du + H KT dv) / (H + KT),
+      dlam = (KT sgn(tau) dv - phi KP du) / (H + KT).
+
+Time integration of one sub-interval (exact, not a time-stepping scheme)
+-----------------------------------------------------------------------
+The contact element hands over, for each sub-interval, ``d`` (penetration at its end), ``du``
+(its increment) and ``dv`` (tangential increment in the axes at ``t0 + THETA dt``); within the
+sub-interval ``u`` and ``v`` therefore move linearly in a pseudo-time ``s in [0, 1]``.
+
+*Elastic part.*  Along an elastic path ``p`` and ``tau`` are linear in ``s`` and ``lam`` is
+frozen, so ``f_e(s) = |tau0 + KT dv s| - B0 - phi0 (p0 + dp s)`` is convex and piecewise
+linear.  A point starting on the surface (``f0 = 0``) loads plastically iff the paper's
+elastic-predictor indicator ``dp_e df/dp + dtau_e df/dtau = sgn(tau0) KT dv - phi0 dp`` is
+>= 0, i.e. iff ``f_e`` leaves 0 upwards; a point starting inside (or unloading from the surface
+and reversing through to the other side of the cone) yields part-way, at the root ``s*`` of
+``f_e`` on the side ``sgn(tau_trial)``; by convexity ``f_e > 0`` on ``(s*, 1]`` and the
+elastic trial ``tau_tr = tau0 + KT dv`` ends outside: ``f_tr > 0``.
+
+*Plastic part.*  While loading, ``sgn(tau)`` is constant and ``tau = KT (v - v_p)`` gives
+``tau(s) = tau_tr(s) - sgn(tau) KT (lam(s) - lam0)`` *exactly*; together with ``f = 0`` at every
+``s`` this is an algebraic equation for ``lam(s)``::
+
+      |tau_tr(s)| - KT Lam - B(lam0 + Lam) - phi(lam0 + Lam) p(s) = 0.
+
+Its solution is the solution of the rate equations (10): differentiating it in ``s`` returns
+(10), and its ``Lam``-slope ``-(KT + H)`` never vanishes (``KT + H > 0`` is required).  For the
+linear hardening used here ``Lam(s) = a s / (c + b s)`` on each unclipped piece, whose sign
+never changes, so loading persists to the end of the sub-interval once started.  Hence the
+state at ``s = 1`` is the root of this piecewise-linear equation at ``s = 1``, found exactly by
+walking over the (at most two) clipping kinks; it depends only on ``(tau_tr, p_new, lam0)``.
+This is the paper's eq. (11) when ``HPHI = HB = 0`` (``tau = sgn (B + phi p_new)``), and it is
+exact for *any* increment size with hardening or softening too, so sub-intervals are needed only
+to follow the rotation of the local axes in the contact element (``THETA`` and ``SUBSTEPS`` are
+read by the contact element; this law does not use them).  The tangent is the exact derivative
+of this map: ``d tau/d tau_tr = H/(KT+H)``, ``d tau/d p_new = sgn KT phi/(KT+H)``, which equals
+the continuum matrix (10) at the end state.
+
+*Dissipation* ``dissip += int |tau| dlam`` along that same exact path: for a given ``lam`` the
+algebraic equation is linear in ``s``, so ``|tau| = B(lam) + phi(lam) p(s(lam))`` is known in
+closed form and is integrated by 5-point Gauss-Legendre in ``lam`` on each piece between kinks
+(exact when ``HPHI = 0`` or ``p`` is constant; rational and smooth otherwise).
+
+*Re-contact* (``p_old == 0`` and ``d > 0``) starts from ``p = tau = 0`` with the part of ``dv``
+after contact, ``dv d/du`` when ``0 < d <= du``.  *Separation* (``d <= 0``): ``p = tau = 0``,
+OPEN; ``lam``, ``slip``, ``dissip`` are kept while open.  In the sub-interval where a point
+separates (``p_old > 0``, ``d <= 0``) the part before ``d`` reaches 0 (fraction
+``d_old/(d_old - d)`` of ``dv``, ``p`` falling to 0) is integrated like any other, so the slip
+forced by the shrinking cone is not lost; only then are ``p`` and ``tau`` zeroed.
+
+``INDICATOR=CLASSICAL`` replaces the predictor indicator, for points starting on the surface,
+by the classical one with the actual (plastic) rates of (10) at the start,
+``dp df/dp + dtau df/dtau = H (sgn KT dv - phi dp) / (H + KT)``: it is 0 for perfect plasticity
+and has the wrong sign when softening (H < 0).  It exists only to show that failure.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..registry import Param, ParamError, register
+from .base import OPEN, SLIP, STICK, ContactLaw, ReturnMappingError
+
+__all__ = ["Coulomb"]
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
+_ON_SURFACE_RTOL = 1e-10
+
+
+def _kink(v0: float, slope: float) -> float:
+    """The ``lam`` where ``v0 + slope lam`` reaches 0 going forward (inf if never)."""
+    return -v0 / slope if slope < 0.0 else np.inf
+
+
+def _clipped_linear(v0: float, slope: float, lam: np.ndarray):
+    """``max(v0 + slope lam, 0)`` and its right-derivative in ``lam`` (0 once clipped).
+
+    The clipped side is decided by comparing with the kink, so that a ``lam`` set exactly on
+    the kink gets the slope of the piece ahead of it.
+    """
+    active = lam < _kink(v0, slope)
+    return np.maximum(v0 + slope * lam, 0.0), np.where(active, slope, 0.0)
+
+
+@register("contact_laws", "COULOMB")
+class Coulomb(ContactLaw):
+    """Elasto-plastic Coulomb friction with adhesion and isotropic hardening (paper, eqs. 1-11).
+
+    Arrays are (g,) over contact Gauss points.  See the module docstring for the integration.
+    """
+
+    params = (
+        Param("KP", float, bounds=(0.0, None), unit="stress/length", doc="normal penalty (> 0)"),
+        Param("KT", float, bounds=(0.0, None), unit="stress/length",
+              doc="tangential penalty (> 0)"),
+        Param("PHI", float, bounds=(0.0, None), doc="friction coefficient phi at lam = 0"),
+        Param("B", float, 0.0, bounds=(0.0, None), unit="stress", doc="adhesion B at lam = 0"),
+        Param("HPHI", float, 0.0, unit="1/length", doc="dphi/dlam (phi clipped at >= 0)"),
+        Param("HB", float, 0.0, unit="stress/length",
+              doc="dB/dlam, < 0 is softening (B clipped at >= 0); KT + HB must stay > 0"),
+        Param("THETA", float, 1.0, bounds=(0.0, 1.0),
+              doc="local axes taken at t0 + THETA dt (read by the contact element)"),
+        Param("SUBSTEPS", int, 1, bounds=(1, None), choices=("AUTO",),
+              doc="sub-intervals per increment (read by the contact element)"),
+        Param("INDICATOR", str, "PREDICTOR", choices=("PREDICTOR", "CLASSICAL"),
+              doc="loading indicator: PREDICTOR (paper); CLASSICAL only to show its failure"),
+    )
+    doc = "Godinas-Charlier-Cescotto elasto-plastic friction in (p, tau), integrated exactly."
+
+    def __init__(self, **values):
+        super().__init__(**values)
+        for name in ("KP", "KT"):
+            if self.p[name] <= 0.0:  # declared bounds are inclusive; a zero penalty is no law
+                raise ParamError(f"{name} must be > 0, got {self.p[name]:g}")
+        if self.kt + min(self.hb, 0.0) <= 0.0:
+            raise ParamError(f"HB = {self.hb:g} softens faster than the tangential penalty "
+                             f"KT = {self.kt:g} allows (KT + HB must be > 0: snap-back)")
+        if self.substeps == "AUTO":
+            raise NotImplementedError(
+                "COULOMB: SUBSTEPS=AUTO is not implemented; give an integer. (This law "
+                "integrates each sub-interval exactly, so sub-intervals only refine the rotation "
+                "of the local axes in the contact element.)")
+
+    # -- hardening functions ---------------------------------------------------------------
+    def adhesion(self, lam):
+        """``B(lam)`` and its right-derivative."""
+        return _clipped_linear(self.b, self.hb, np.asarray(lam, float))
+
+    def friction(self, lam):
+        """``phi(lam)`` and its right-derivative."""
+        return _clipped_linear(self.phi, self.hphi, np.asarray(lam, float))
+
+    # -- one sub-interval ----------------------------------------------------------------
+    def update(self, state, d, du, dv):
+        """Integrate one sub-interval for all points (see :class:`ContactLaw`).
+
+        Returns ``(new_state, tan)``; besides ``p_u``, ``tau_u``, ``tau_v``, ``tau_tau`` the
+        tangent holds ``p_d``, ``tau_d`` (d/dd at fixed du) and ``tau_du`` (d/ddu at fixed d),
+        ``tau_u = tau_d + tau_du``, for elements whose ``d`` and ``du`` vary independently.
+        """
+        p_old = np.asarray(state["p"], float)
+        d, du, dv = (np.broadcast_to(np.asarray(x, float), p_old.shape) for x in (d, du, dv))
+        kp, kt = self.kp, self.kt
+        contact = d > 0.0
+        p1 = kp * np.maximum(d, 0.0)
+
+        # the in-contact part of the sub-interval: re-contact starts from p = tau = 0 with the
+        # part of dv after touching; separation integrates the slip up to the moment p = 0
+        d_old = d - du
+        recon = contact & (p_old <= 0.0)
+        partial = recon & (d <= du)
+        sep = ~contact & (p_old > 0.0) & (d_old > 0.0)
+        safe_du = np.where(partial, du, 1.0)
+        frac = np.where(partial, d / safe_du, 1.0)
+        frac = np.where(sep, d_old / np.where(sep, d_old - d, 1.0), frac)
+        active = contact | sep
+        dv_c = dv * frac
+        tau0 = np.where(recon, 0.0, np.asarray(state["tau"], float))
+        p0 = np.where(recon, 0.0, p_old)
+        lam0 = np.asarray(state["lam"], float)
+        tau_tr = tau0 + kt * dv_c
+
+        plastic, sig = self._loading(tau0, p0, p1, lam0, dv_c, tau_tr, active, recon)
+        lam1, dmat, hmat, phi1 = self._return(np.abs(tau_tr), p1, lam0, plastic)
+        dlam = np.where(plastic, lam1 - lam0, 0.0)
+        if self.indicator == "PREDICTOR":
+            dlam = np.maximum(dlam, 0.0)  # roundoff guard at neutral loading
+        tau1 = np.where(contact, tau_tr - sig * kt * dlam, 0.0)
+        ddis = self._dissipation(tau0, p0, p1 - p0, dv_c, lam0, dlam, sig, plastic)
+
+        new_state = dict(state)
+        new_state.update(
+            p=p1, tau=tau1, lam=lam0 + dlam, slip=np.asarray(state["slip"], float) + np.abs(dlam),
+            dissip=np.asarray(state["dissip"], float) + ddis,
+            status=np.where(~contact, OPEN, np.where(plastic, SLIP, STICK)).astype(np.int8))
+        tan = self._tangent(contact, plastic, recon, partial, d, safe_du, dv, frac, sig, dmat,
+                            hmat, phi1)
+        return new_state, tan
+
+    def _loading(self, tau0, p0, p1, lam0, dv_c, tau_tr, contact, recon):
+        """Which points load plastically in this sub-interval, and sgn(tau) while they do.
+
+        ``contact``: points in contact during (part of) the sub-interval; ``recon``: those
+        that start from p = 0 (re-contact).
+        """
+        kt = self.kt
+        b0, hb0 = self.adhesion(lam0)
+        phi0, hphi0 = self.friction(lam0)
+        radius0 = b0 + phi0 * p0
+        f0 = np.abs(tau0) - radius0
+        f_tr = np.abs(tau_tr) - b0 - phi0 * p1
+        sig_tr = np.where(tau_tr >= 0.0, 1.0, -1.0)
+        sig0 = np.where(tau0 != 0.0, np.sign(tau0), np.where(dv_c >= 0.0, 1.0, -1.0))
+        on = contact & ~recon & (f0 >= -_ON_SURFACE_RTOL * (radius0 + np.abs(tau0)))
+        indicator = sig0 * kt * dv_c - phi0 * (p1 - p0)        # elastic-predictor rates
+        if self.indicator == "CLASSICAL":                       # actual (plastic) rates
+            h0 = hb0 + hphi0 * p0
+            indicator = h0 * indicator / (h0 + kt)
+        loading_on = on & (indicator >= 0.0)                    # paper: unloading iff < 0
+        reversed_through = on & ~loading_on & (sig_tr != sig0) & (f_tr > 0.0)
+        crossing = contact & ~on & (f_tr > 0.0)                 # starts inside, yields part-way
+        return loading_on | reversed_through | crossing, sig_tr
+
+    def _return(self, abs_tau_tr, p1, lam0, plastic):
+        """Solve ``|tau_tr| - KT Lam - B(lam) - phi(lam) p1 = 0`` piece by piece over kinks.
+
+        Returns ``lam1``, ``KT + H``, ``H`` and ``phi`` on the final piece (g,).
+        """
+        kt = self.kt
+        kinks = (_kink(self.b, self.hb), _kink(self.phi, self.hphi))
+        lam = lam0.copy()
+        resid = abs_tau_tr - self.adhesion(lam)[0] - self.friction(lam)[0] * p1  # f_tr
+        done = ~plastic
+        dmat = np.full_like(lam, kt)
+        hmat = np.zeros_like(lam)
+        for _ in range(len(kinks) + 1):                     # walk over at most two kinks
+            h = self.adhesion(lam)[1] + self.friction(lam)[1] * p1
+            step = resid / (kt + h)
+            ahead = np.minimum(*(np.where(lam < k, k, np.inf) for k in kinks))
+            cross = ~done & (step > 0.0) & (lam + step > ahead)
+            finish = ~done & ~cross
+            if np.any(finish & (kt + h <= 0.0)):
+                raise ReturnMappingError("COULOMB: KT + dB/dlam + p dphi/dlam <= 0 at a "
+                                         "slipping point (softening snap-back)")
+            dmat = np.where(finish, kt + h, dmat)
+            hmat = np.where(finish, h, hmat)
+            resid = np.where(cross, resid - (kt + h) * (ahead - lam), resid)  # linear piece
+            lam = np.where(finish, lam + step, np.where(cross, ahead, lam))
+            done = done | finish
+        phi1, _ = self.friction(lam)
+        return lam, dmat, hmat, phi1
+
+    def _dissipation(self, tau0, p0, dp, dv_c, lam0, dlam, sig, plastic):
+        """``int |tau| dlam`` along the exact plastic path (Gauss-Legendre in lam per piece)."""
+        act = plastic & (dlam != 0.0)
+        if not np.any(act):
+            return np.zeros_like(lam0)
+        lam1 = lam0 + dlam
+        lo, hi = np.minimum(lam0, lam1), np.maximum(lam0, lam1)
+        cuts = [np.clip(_kink(self.b, self.hb), lo, hi), np.clip(_kink(self.phi, self.hphi), lo, hi)]
+        edges = np.sort(np.stack([lo, *cuts, hi], axis=-1), axis=-1)       # (g, 4)
+        a, c = edges[:, :-1], edges[:, 1:]                                  # (g, 3) pieces
+        lam = 0.5 * (a + c)[..., None] + 0.5 * (c - a)[..., None] * _GL_X   # (g, 3, 5)
+        b, _ = self.adhesion(lam)
+        phi, _ = self.friction(lam)
+        # s(lam) from |tau_tr(s)| - KT (lam - lam0) = B + phi p(s), linear in s
+        ex = lambda x: x[:, None, None]  # noqa: E731  (g,) -> (g, 1, 1)
+        num = self.kt * (lam - ex(lam0)) + b + phi * ex(p0) - ex(sig * tau0)
+        den = ex(sig * self.kt * dv_c) - phi * ex(dp)
+        ok = np.abs(den) > 1e-300
+        s = np.clip(np.where(ok, num / np.where(ok, den, 1.0), 1.0), 0.0, 1.0)
+        abs_tau = b + phi * (ex(p0) + ex(dp) * s)
+        piece = np.einsum("gpk,k->gp", abs_tau, _GL_W) * 0.5 * (c - a)
+        return np.where(act, np.sign(dlam) * piece.sum(axis=-1), 0.0)
+
+    def _tangent(self, contact, plastic, recon, partial, d, safe_du, dv, frac, sig, dmat,
+                 hmat, phi1):
+        """Exact derivatives of the sub-interval map, zero where open."""
+        kp, kt = self.kp, self.kt
+        dtau_dtr = np.where(plastic, hmat / dmat, 1.0)
+        dtau_dp1 = np.where(plastic, sig * kt * phi1 / dmat, 0.0)
+        # tau_tr = tau0 + KT dv frac, frac = d/du on a partial re-contact
+        dtr_dd = np.where(partial, kt * dv / safe_du, 0.0)
+        dtr_ddu = np.where(partial, -kt * dv * d / safe_du**2, 0.0)
+        c = contact.astype(float)
+        p_d = kp * c
+        tau_d = c * (dtau_dp1 * kp + dtau_dtr * dtr_dd)
+        tau_du = c * dtau_dtr * dtr_ddu
+        return {"p_u": p_d, "p_d": p_d.copy(), "tau_u": tau_d + tau_du, "tau_d": tau_d,
+                "tau_du": tau_du, "tau_v": c * dtau_dtr * kt * frac,
+                "tau_tau": c * np.where(recon, 0.0, dtau_dtr)}
