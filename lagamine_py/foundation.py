@@ -204,7 +204,9 @@ class Foundation:
         m = _perp(dX)
         m_norm = np.linalg.norm(m, axis=-1)
         cosn = np.einsum("gki,gi->gk", m, e_u) / np.where(m_norm > 0, m_norm, 1.0)
-        dist = np.einsum("gki,gi->gk", P[:, None] - X, e_u)      # d = e_u . (P - Q)
+        # d = e_u . (P - Q) / |e_u|^2: the line parameter, so that Q = P - d e_u holds (and the
+        # derivatives below) even for a direction that is not exactly unit
+        dist = np.einsum("gki,gi->gk", P[:, None] - X, e_u) / np.einsum("gi,gi->g", e_u, e_u)[:, None]
         valid = valid.reshape(g, k) & (m_norm > 0) & (cosn < -self.cos_min)
         score = np.where(valid, np.abs(dist), np.inf)
         best = np.argmin(score, axis=1)
