@@ -135,7 +135,7 @@ def make_model(nnodes, steps, name="fake"):
 
 
 def make_problem(model, groups, kinds=None, pressure_groups=None):
-    kinds = kinds or ["solid"] * len(groups)
+    kinds = kinds or ["spring"] * len(groups)
     return Problem(model, list(groups), list(kinds), [f"g{k}" for k in range(len(groups))],
                    [None] * len(groups), dict(pressure_groups or {}), {},
                    Pattern(model.ndof, [g.dofs for g in groups]))

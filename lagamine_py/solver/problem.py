@@ -1,0 +1,173 @@
+"""From a :class:`~lagamine_py.model.Model` to the groups the solver iterates on.
+
+:func:`build_problem` instantiates, through the registry, the material laws, one solid group per
+element block, the contact laws, the foundations, one contact group per ``*CONTACT`` and one
+pressure group per surface that some step loads with ``*DLOAD``; then it builds the sparsity
+pattern once.  :meth:`Problem.evaluate` asks every group for its forces (and tangent) and
+assembles them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .newton import GroupFailure
+from .pattern import Pattern
+
+SOLID, CONTACT, PRESSURE = "solid", "contact", "pressure"
+
+
+@dataclass
+class Evaluation:
+    f_int: np.ndarray               # (ndof,) sum of the groups' f (internal side)
+    data: np.ndarray | None         # (nnz,) CSR data of the tangent, None when not asked
+    states: list[dict]              # trial states
+    scale: float                    # max over groups of |f_g| (force scale of the residual test)
+    results: list[Any] = field(default_factory=list)
+
+
+@dataclass
+class Problem:
+    """Groups of a model and the fixed sparsity pattern.
+
+    ``groups[k]`` has kind ``kinds[k]`` (solid / contact / pressure) and label ``group_names[k]``
+    (element type and elset, ``surface->foundation``, or the pressure surface).  ``blocks[k]`` is
+    the :class:`ElementBlock` of a solid group (None otherwise).  ``pressure_groups`` maps a
+    surface name to its pressure group, ``foundations`` a foundation name to its object.
+    """
+    model: Any
+    groups: list
+    kinds: list[str]
+    group_names: list[str]
+    blocks: list
+    pressure_groups: dict[str, Any]
+    foundations: dict[str, Any]
+    pattern: Pattern
+
+    @property
+    def ndof(self) -> int:
+        return self.pattern.ndof
+
+    def init_states(self) -> list[dict]:
+        return [g.init_state() for g in self.groups]
+
+    def indices(self, kind: str) -> list[int]:
+        return [k for k, kd in enumerate(self.kinds) if kd == kind]
+
+    def evaluate(self, u_new: np.ndarray, u_old: np.ndarray, states: list[dict], ctx,
+                 tangent: bool = True) -> Evaluation:
+        """Compute every group at ``u_new`` (ndof,) from the committed ``states``; assemble.
+
+        Raises :class:`~lagamine_py.solver.newton.GroupFailure` when a group reports a failure
+        or raises an ``ArithmeticError`` (``ReturnMappingError``, floating-point errors)."""
+        un, uo = u_new.reshape(-1, 2), u_old.reshape(-1, 2)
+        results = []
+        for k, g in enumerate(self.groups):
+            try:
+                r = g.compute(un, uo, states[k], ctx, tangent)
+            except ArithmeticError as exc:
+                raise GroupFailure(f"{self.group_names[k]}: {exc}") from exc
+            if r.failure:
+                raise GroupFailure(f"{self.group_names[k]}: {r.failure}")
+            results.append(r)
+        f_int = np.zeros(self.ndof)
+        scale = 0.0
+        for k, r in enumerate(results):
+            fk = self.pattern.group_vector(k, r.f)
+            f_int += fk
+            scale = max(scale, float(np.linalg.norm(fk)))
+        data = self.pattern.assemble_data([r.K for r in results]) if tangent else None
+        return Evaluation(f_int, data, [r.state for r in results], scale, results)
+
+    def set_pressures(self, values: dict[str, float]) -> None:
+        """Set the uniform pressure of each loaded surface (surfaces not listed: 0)."""
+        for name, grp in self.pressure_groups.items():
+            grp.pressure = np.full(np.shape(grp.pressure), float(values.get(name, 0.0)))
+
+
+def _surface_thickness(model, surface, lookup) -> float:
+    """Thickness of the block owning the first face of ``surface`` (plane strain)."""
+    if not len(surface.elements):
+        return 1.0
+    b, _ = lookup[int(surface.elements[0])]
+    return float(model.blocks[b].thickness)
+
+
+def dload_surfaces(model) -> list[str]:
+    """Surfaces loaded by ``*DLOAD`` in any step, in order of first appearance."""
+    out: list[str] = []
+    for step in model.steps:
+        for d in step.dloads:
+            if d.surface.upper() not in out:
+                out.append(d.surface.upper())
+    return out
+
+
+def _surface(model, name: str):
+    surf = model.surfaces.get(name) or model.surfaces.get(name.upper())
+    if surf is None:
+        raise KeyError(f"unknown surface {name}")
+    return surf
+
+
+def build_problem(model) -> Problem:
+    """Instantiate every group of ``model`` and the sparsity pattern."""
+    from ..registry import get
+    from ..foundation import Foundation
+    from ..elements.contact import ContactGroup
+    from ..elements.edges import PressureGroup, surface_faces
+
+    groups, kinds, names, blocks = [], [], [], []
+    laws = {name: get("laws", spec.law)(**spec.params) for name, spec in model.materials.items()}
+    for blk in model.blocks:
+        law = laws[blk.material] if blk.material in laws else laws[blk.material.upper()]
+        groups.append(get("elements", blk.type)(blk.ids, blk.conn, model.coords, law,
+                                                blk.thickness))
+        kinds.append(SOLID)
+        names.append(f"{blk.type} {blk.elset}".strip())
+        blocks.append(blk)
+
+    foundations = {name: Foundation(spec.points, name) for name, spec in model.foundations.items()}
+    contact_laws = {name: get("contact_laws", spec.type)(**spec.params)
+                    for name, spec in model.contact_laws.items()}
+    lookup = model.element_lookup()
+    for cs in model.contacts:
+        surf = _surface(model, cs.surface)
+        face_nodes, elements, faces = surface_faces(model, surf.name)
+        fname = _key(model.foundations, cs.foundation)
+        name = f"{surf.name}->{fname}"
+        groups.append(ContactGroup(name, face_nodes, elements, faces, model.coords,
+                                   foundations[fname], fname,
+                                   contact_laws[_key(model.contact_laws, cs.law)], cs.gauss,
+                                   model.axisymmetric, _surface_thickness(model, surf, lookup)))
+        kinds.append(CONTACT)
+        names.append(name)
+        blocks.append(None)
+
+    pressure_groups = {}
+    for sname in dload_surfaces(model):
+        surf = _surface(model, sname)
+        face_nodes, _, _ = surface_faces(model, surf.name)
+        grp = PressureGroup(face_nodes, model.coords, model.axisymmetric,
+                            _surface_thickness(model, surf, lookup))
+        grp.pressure = np.zeros(len(face_nodes))
+        pressure_groups[sname] = grp
+        groups.append(grp)
+        kinds.append(PRESSURE)
+        names.append(f"pressure on {surf.name}")
+        blocks.append(None)
+
+    pattern = Pattern(model.ndof, [g.dofs for g in groups])
+    return Problem(model, groups, kinds, names, blocks, pressure_groups, foundations, pattern)
+
+
+def _key(table: dict, name: str) -> str:
+    """The key of ``table`` matching ``name`` case-insensitively."""
+    if name in table:
+        return name
+    for k in table:
+        if k.upper() == name.upper():
+            return k
+    raise KeyError(name)

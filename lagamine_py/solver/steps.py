@@ -1,0 +1,327 @@
+"""The step controller: steps in sequence, automatic increments, cut-backs, writers, restart.
+
+Per step: the loads are resolved against what the previous steps left (:mod:`.loads`); the
+increment starts at ``dt0``, grows by ``GROWTH`` after an increment that converged in at most
+``EASY`` iterations without a cut-back, never beyond ``dt_max`` or the step end, and is cut by
+``CUTBACK`` on any typed failure of Newton.  When a cut-back would go below ``dt_min`` the run
+stops with status 3 and a message naming the step, the time reached and why; every converged
+increment has already been handed to the writers (and saved for restart).  Group states are
+committed only on convergence.
+
+The run's messages (steps, Newton norms, cut-backs, the stop reason) go to the
+``lagamine_py.solver`` logger (the STATUS writer copies them into ``OUT/<deck>.log``).
+"""
+from __future__ import annotations
+
+import logging
+import sys
+import time as _time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..elements.base import StepContext
+from ..output.base import IncrementResult
+from ..registry import validate_params
+from . import restart as rs
+from .controls import CONTROL_PARAMS
+from .linear import FreeDofs, SingularMatrixError, make_solver
+from .loads import Reached, StepLoads, step_loads
+from .newton import FLOOR_FRACTION, ConvergenceFailure, Settings, solve_increment
+from .problem import CONTACT, SOLID, Problem, build_problem, dload_surfaces
+
+log = logging.getLogger("lagamine_py.solver")
+
+EXIT_OK, EXIT_OTHER, EXIT_DIVERGED = 0, 1, 3
+
+
+@dataclass
+class Outcome:
+    status: int        # 0 all steps done, 3 a step could not converge, 1 other
+    message: str
+
+
+class StepFailed(Exception):
+    """A step cannot go on (cut-backs exhausted, INC= exceeded, singular matrix)."""
+
+
+class _Controls:
+    params = CONTROL_PARAMS
+
+
+def step_controls(step) -> dict[str, Any]:
+    """The step's ``*CONTROLS`` values completed with the defaults."""
+    return validate_params(_Controls, dict(step.controls))
+
+
+def run(model, outdir, writers=None, restart: bool = False, deck_path=None,
+        progress: bool = False, problem: Problem | None = None) -> Outcome:
+    """Run every step of ``model``; write through ``writers`` (default:
+    :func:`lagamine_py.output.default_writers`, in append mode on restart).
+
+    ``restart=True`` resumes from ``outdir/restart.npz``.  Typed failures give an
+    :class:`Outcome` with status 3; other exceptions close the writers (status 1) and propagate.
+    """
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    if problem is None:
+        problem = build_problem(model)
+    if writers is None:
+        from ..output import default_writers
+        writers = default_writers(outdir, model, append=restart)
+    return Controller(model, problem, outdir, writers, deck_path, progress).run(restart)
+
+
+class Controller:
+    def __init__(self, model, problem: Problem, outdir: Path, writers: list, deck_path=None,
+                 progress: bool = False):
+        self.model, self.problem, self.outdir, self.writers = model, problem, outdir, writers
+        self.deck_path = str(deck_path) if deck_path is not None else ""
+        self.progress = Progress(enabled=progress)
+        n = problem.ndof
+        self.u = np.zeros(n)
+        self.reaction = np.zeros(n)
+        self.states = problem.init_states()
+        self.reached = Reached()
+        self.time_offset = 0.0            # total time at the start of the current step
+        self.force_ref = 0.0              # largest force scale of converged increments
+        self.total_increments = 0
+        self.surfaces = dload_surfaces(model)
+        self.foundations = list(model.foundations)
+        self.has_contact = CONTACT in problem.kinds
+
+    # -- the run ---------------------------------------------------------------------------
+    def run(self, restart: bool) -> Outcome:
+        resume = self._load_restart() if restart else None
+        for w in self.writers:
+            w.restarting = restart           # writers that append on restart can read this
+            w.start_run()
+        status, message = EXIT_OTHER, "interrupted"
+        try:
+            first = resume["step"] if resume else 0
+            for si in range(first, len(self.model.steps)):
+                self._run_step(si, _resume_or_none(resume) if si == first else None)
+            status = EXIT_OK
+            message = (f"completed {len(self.model.steps)} step(s), {self.total_increments} "
+                       f"increments, time {self.time_offset:g}")
+            log.info(message)
+        except StepFailed as exc:
+            status, message = EXIT_DIVERGED, str(exc)
+            log.error(message)
+        finally:
+            self.progress.end()
+            for w in self.writers:
+                w.close(status, message)
+        return Outcome(status, message)
+
+    def _run_step(self, si: int, resume: dict | None) -> None:
+        model, step = self.model, self.model.steps[si]
+        controls = step_controls(step)
+        settings = Settings.from_controls(controls)
+        solver = make_solver(controls["SOLVER"])
+        T = float(step.period)
+        if resume is not None:
+            loads, t, dt, inc = resume["loads"], resume["t"], resume["dt"], resume["inc"]
+        else:
+            loads = step_loads(model, step, self.reached, self.u, self.reaction,
+                               self.surfaces, self.foundations)
+            t, inc = 0.0, 0
+            dt = min(step.dt0, step.dt_max, T)
+        free = FreeDofs(self.problem.pattern, loads.constrained)
+        log.info("step %d %s: period %g, dt0 %g, %d constrained DOFs", si + 1, step.name, T,
+                 step.dt0, len(loads.constrained))
+        for w in self.writers:
+            w.start_step(si + 1, step)
+        while T - t > 1e-12 * T:
+            if inc >= step.max_increments:
+                raise StepFailed(f"step {si + 1} ({step.name}): reached the maximum of "
+                                 f"{step.max_increments} increments (INC=) at step time {t:g} "
+                                 f"of {T:g} (total time {self.time_offset + t:g})")
+            dt_try = min(dt, T - t)
+            cutbacks = 0
+            while True:
+                try:
+                    conv = self._attempt(step, loads, free, solver, settings, t, dt_try)
+                    break
+                except (ConvergenceFailure, SingularMatrixError) as exc:
+                    reason = self._failure_text(exc)
+                    if isinstance(exc, SingularMatrixError) and not self.has_contact:
+                        raise StepFailed(f"step {si + 1} ({step.name}) stopped at step time "
+                                         f"{t:g} of {T:g}: {reason}") from None
+                    cutbacks += 1
+                    self._report_failure(si, step, inc, t, dt_try, cutbacks, exc, reason)
+                    dt_try *= controls["CUTBACK"]
+                    if dt_try < step.dt_min:
+                        raise StepFailed(
+                            f"step {si + 1} ({step.name}) could not converge: at step time "
+                            f"{t:g} of {T:g} (total time {self.time_offset + t:g}) the time "
+                            f"increment fell to {dt_try:.3g}, below the minimum "
+                            f"{step.dt_min:g}, after {cutbacks} cut-back(s); last failure: "
+                            f"{reason}") from None
+            dt = dt_try
+            inc += 1
+            t = T if T - (t + dt_try) <= 1e-12 * T else t + dt_try
+            self._commit(conv, loads, free, t)
+            self._hand_out(si, step, loads, inc, t, dt_try, conv, cutbacks, T)
+            if conv.iterations <= controls["EASY"] and cutbacks == 0:
+                dt = min(dt * controls["GROWTH"], step.dt_max)
+            self._save_restart(si, loads, t, dt, inc)
+        self.reached = loads.reached(model)
+        self.time_offset += T
+        self.progress.end()
+
+    def _attempt(self, step, loads: StepLoads, free, solver, settings, t, dt):
+        model, problem = self.model, self.problem
+        t_new = t + dt
+        ctx = StepContext(nlgeom=bool(step.nlgeom), t_old=self.time_offset + t,
+                          t_new=self.time_offset + t_new, load_factor=1.0,
+                          foundation_old=loads.motions(model, t),
+                          foundation_new=loads.motions(model, t_new))
+        problem.set_pressures(loads.pressures(model, t_new))
+        f_ext = loads.f_ext(model, t_new, problem.ndof)
+        u_c = loads.bc_values(model, t_new)
+        log.info("  increment at step time %g, dt %g", t_new, dt)
+        conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
+                               settings, floor=FLOOR_FRACTION * self.force_ref)
+        conv.f_ext, conv.ctx = f_ext, ctx
+        return conv
+
+    def _commit(self, conv, loads, free, t) -> None:
+        self.u = conv.u
+        self.states = conv.states
+        self.reaction = np.zeros_like(self.u)
+        c = free.constrained
+        self.reaction[c] = (conv.f_int - conv.f_ext)[c]
+        self.force_ref = max(self.force_ref, conv.scale)
+        self.total_increments += 1
+
+    # -- output ----------------------------------------------------------------------------
+    def _hand_out(self, si, step, loads, inc, t, dt, conv, cutbacks, T) -> None:
+        model = self.model
+        u2 = self.u.reshape(-1, 2)
+        reaction2 = self.reaction.reshape(-1, 2)
+        by_set = {name: reaction2[np.asarray(nodes, np.int64)].sum(axis=0)
+                  for name, nodes in loads.bc_targets.items()}
+        freq = max(int(step.output.frequency), 1)
+        motions = loads.motions(model, t)
+        result = IncrementResult(
+            step=si + 1, step_name=step.name, increment=inc, time=self.time_offset + t,
+            step_time=t, dt=dt, iterations=conv.iterations, residual=conv.residual,
+            cutbacks=cutbacks, coords0=model.coords, u=u2.copy(), reaction=reaction2.copy(),
+            reactions_by_set=by_set, cells=self._cells(),
+            contacts=self._contacts(u2, conv.ctx),
+            foundations={name: np.asarray(spec.points, float) + motions[name]
+                         for name, spec in model.foundations.items()},
+            write_fields=(inc % freq == 0) or t >= T,
+            residual_history=list(conv.history))
+        log.info("  converged: step %d increment %d, time %g, %d iterations, |R|/F %.3e",
+                 si + 1, inc, result.time, conv.iterations, conv.residual)
+        for w in self.writers:
+            w.increment(result)
+        self.progress.update(si, step, t, T, inc, conv.iterations, len(self.model.steps))
+
+    def _cells(self) -> list[dict]:
+        cells = []
+        for k in self.problem.indices(SOLID):
+            g, blk, st = self.problem.groups[k], self.problem.blocks[k], self.states[k]
+            if hasattr(g, "cell_output"):
+                cells.append(g.cell_output(self.u.reshape(-1, 2), st))
+                continue
+            stress = st.get("stress")
+            peeq = st.get("peeq")
+            nq = stress.shape[1] if stress is not None else 1
+            cells.append({"type": blk.type, "ids": blk.ids, "conn": blk.conn,
+                          "stress": stress if stress is not None else np.zeros((len(blk.ids), nq, 4)),
+                          "peeq": peeq if peeq is not None else np.zeros((len(blk.ids), nq)),
+                          "nen": blk.conn.shape[1]})
+        return cells
+
+    def _contacts(self, u2, ctx) -> list:
+        return [self.problem.groups[k].points(u2, self.states[k], ctx)
+                for k in self.problem.indices(CONTACT)]
+
+    def _failure_text(self, exc) -> str:
+        if isinstance(exc, SingularMatrixError):
+            return exc.describe(self.model.node_ids)
+        return f"{exc.reason}: {exc}"
+
+    def _report_failure(self, si, step, inc, t, dt, cutbacks, exc, reason) -> None:
+        history = getattr(exc, "history", [])
+        log.warning("  step %d increment %d: attempt with dt %g failed (%s); cutting back",
+                    si + 1, inc + 1, dt, reason)
+        info = {"step": si + 1, "step_name": step.name, "increment": inc + 1,
+                "time": self.time_offset + t, "step_time": t, "dt": dt,
+                "reason": getattr(exc, "reason", "singular matrix"), "message": reason,
+                "iterations": max(len(history) - 1, 0), "residual_history": list(history),
+                "cutbacks": cutbacks}
+        for w in self.writers:
+            w.failed_attempt(info)
+
+    # -- restart ---------------------------------------------------------------------------
+    def _save_restart(self, si, loads: StepLoads, t, dt, inc) -> None:
+        data = {"deck": np.array(self.deck_path), "ndof": np.array(self.problem.ndof),
+                "ngroups": np.array(len(self.problem.groups)), "step": np.array(si),
+                "t": np.array(t), "dt": np.array(dt), "inc": np.array(inc),
+                "total_increments": np.array(self.total_increments),
+                "time_offset": np.array(self.time_offset), "force_ref": np.array(self.force_ref),
+                "u": self.u, "reaction": self.reaction}
+        data.update(rs.pack_states(self.states))
+        data.update(loads.to_arrays())
+        rs.save(self.outdir, data)
+
+    def _load_restart(self) -> dict:
+        data = rs.load(self.outdir)
+        if int(data["ndof"]) != self.problem.ndof or int(data["ngroups"]) != len(self.problem.groups):
+            raise rs.RestartError("the restart data does not fit the model (DOFs or groups differ)")
+        self.u = data["u"].copy()
+        self.reaction = data["reaction"].copy()
+        self.states = rs.unpack_states(data, self.problem.init_states())
+        self.total_increments = int(data["total_increments"])
+        self.time_offset = float(data["time_offset"])
+        self.force_ref = float(data["force_ref"])
+        loads = StepLoads.from_arrays(data)
+        si, t = int(data["step"]), float(data["t"])
+        log.info("restart from step %d at step time %g", si + 1, t)
+        if t >= loads.period * (1 - 1e-12):     # saved at a step end: go on with the next step
+            self.reached = loads.reached(self.model)
+            self.time_offset += loads.period
+            return {"step": si + 1, "loads": None}
+        return {"step": si, "loads": loads, "t": t, "dt": float(data["dt"]),
+                "inc": int(data["inc"])}
+
+
+def _resume_or_none(resume):
+    return resume if resume and resume.get("loads") is not None else None
+
+
+class Progress:
+    """One-line progress bar on a TTY (stderr), plain lines otherwise."""
+
+    def __init__(self, enabled: bool, stream=None):
+        self.enabled = enabled
+        self.stream = stream or sys.stderr
+        self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.open_line = False
+        self.t0 = _time.perf_counter()
+
+    def update(self, si, step, t, T, inc, iterations, nsteps) -> None:
+        if not self.enabled:
+            return
+        frac = t / T if T > 0 else 1.0
+        text = (f"step {si + 1}/{nsteps} {step.name}: t {t:.4g}/{T:g}  inc {inc}  "
+                f"it {iterations}  {_time.perf_counter() - self.t0:.1f}s")
+        if self.tty:
+            bar = "#" * int(20 * frac) + "-" * (20 - int(20 * frac))
+            self.stream.write(f"\r[{bar}] {text}\033[K")
+            self.open_line = True
+        else:
+            self.stream.write(text + "\n")
+        self.stream.flush()
+
+    def end(self) -> None:
+        if self.open_line:
+            self.stream.write("\n")
+            self.stream.flush()
+            self.open_line = False
