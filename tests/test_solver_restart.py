@@ -1,0 +1,81 @@
+"""Restart: a run interrupted after a converged increment and resumed reaches the same result,
+increment by increment, as an uninterrupted run."""
+import numpy as np
+import pytest
+
+from lagamine_py.model import Boundary, CLoad, Step
+from lagamine_py.solver import restart_deck, run
+from lagamine_py.solver.restart import FILE
+
+from test_solver_fakes import GROUND, Failing, PlasticSprings, Recorder, Springs, make_model, make_problem
+
+
+def model():
+    steps = [
+        Step("LOAD", dt0=0.2, dt_max=0.5, controls={"GROWTH": 1.7},
+             boundaries=[Boundary("N1", np.array([1]), 1, 1, 0.5)],
+             cloads=[CLoad("N0", np.array([0]), 2, 3.0)]),
+        Step("UNLOAD", dt0=0.3, dt_max=1.0, period=1.5,
+             boundaries=[Boundary("N1", np.array([1]), 1, 1, -0.2)]),
+    ]
+    return make_model(3, steps)
+
+
+def groups():
+    """Plastic springs (history) on the x chain, cubic springs on y, and a group refusing
+    increments longer than 0.4 (cut-backs: dt itself must be restored)."""
+    plastic = PlasticSprings([[GROUND, 0], [0, 2], [2, 4], [GROUND, 4]], [10.0, 8.0, 6.0, 1.0],
+                             fy=0.5, H=2.0)
+    picky = Failing(plastic, lambda ctx, u: "too long" if ctx.t_new - ctx.t_old > 0.4 + 1e-12 else None)
+    return [picky, Springs([[GROUND, 1], [1, 3], [GROUND, 5], [3, 5]], [2.0, 1.0, 1.0, 3.0], a=1.5)]
+
+
+def go(outdir, writer, restart=False):
+    m = model()
+    return run(m, outdir, writers=[writer], restart=restart, problem=make_problem(m, groups()),
+               deck_path="some/deck.dat")
+
+
+def signature(results):
+    return [(r.step, r.increment, r.time, r.dt) for r in results]
+
+
+@pytest.mark.parametrize("stop_at, exc", [((1, 2), KeyboardInterrupt), ((1, 4), SystemExit),
+                                          ((2, 1), KeyboardInterrupt)])
+def test_restart_reaches_the_uninterrupted_result(tmp_path, stop_at, exc):
+    full = Recorder()
+    assert go(tmp_path / "full", full).status == 0
+    assert any(r.cutbacks for r in full.results)           # the scenario does cut back
+    n_step1 = sum(r.step == 1 for r in full.results)
+    if stop_at == (1, 4):
+        stop_at = (1, n_step1)                               # interrupt at the end of step 1
+
+    class Stopper(Recorder):
+        def increment(self, result):
+            super().increment(result)
+            if (result.step, result.increment) == stop_at:
+                raise exc
+
+    first = Stopper()
+    with pytest.raises(exc):
+        go(tmp_path / "cut", first)
+    assert first.closed[0] == 1
+    assert restart_deck(tmp_path / "cut").as_posix() == "some/deck.dat"
+    second = Recorder()
+    out = go(tmp_path / "cut", second, restart=True)
+    assert out.status == 0
+    assert signature(first.results) == signature(full.results[:len(first.results)])
+    # the restart point is saved after the writers took the increment: the increment whose
+    # hand-out was interrupted is computed again
+    k = len(first.results) - 1
+    assert len(second.results) == len(full.results) - k
+    assert np.allclose(np.array(signature(second.results)), np.array(signature(full.results[k:])),
+                       rtol=1e-14, atol=0)
+    for a, b in zip(second.results, full.results[k:]):
+        assert np.abs(a.u - b.u).max() <= 1e-12 * np.abs(b.u).max()
+        assert np.abs(a.reaction - b.reaction).max() <= 1e-12 * max(np.abs(b.reaction).max(), 1.0)
+
+
+def test_no_restart_data(tmp_path):
+    assert restart_deck(tmp_path) is None
+    assert not (tmp_path / FILE).exists()
