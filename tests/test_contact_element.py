@@ -332,3 +332,14 @@ def test_tangent_with_coulomb_hardening_substeps():
     law = _coulomb(0.5, 3, HPHI=2.0, HB=5.0)
     args = _setup(3, 3, True, 0.5, 3, "slip", law=law)
     _check_fd(*args, want=SLIP)
+
+
+@pytest.mark.parametrize("substeps", (1, 3))
+@pytest.mark.parametrize("slide,want", ((0.004, STICK), (0.3, SLIP)))
+def test_tangent_with_coulomb_touch_down(substeps, slide, want):
+    """Open at the start of the increment, in contact at its end (re-contact part-way through
+    a sub-interval: the law's d/du fraction enters the tangent)."""
+    law = _coulomb(0.5, substeps)
+    grp, u_old, u_new, _, ctx = _setup(3, 3, False, 0.5, substeps, "open", law=law)
+    u_new = u_new + [slide, -0.205]
+    _check_fd(grp, u_old, u_new, grp.init_state(), ctx, want)
