@@ -22,6 +22,8 @@ import numpy as np
 from ..registry import Param, ParamError, register
 from .base import MaterialLaw
 
+__all__ = ["J2Plasticity", "J2Linear", "isotropic_moduli", "elastic_matrix", "von_mises"]
+
 # Relative margin above the current yield stress for a point to count as plastic: a point
 # re-evaluated at its converged state (zero increment) stays elastic despite round-off.
 YIELD_RTOL = 1e-12
@@ -87,7 +89,7 @@ class J2Plasticity(MaterialLaw):
         """
         eps = np.asarray(eps_e_trial, dtype=float)
         shape = eps.shape[:-1]
-        eps = eps.reshape(-1, 4)
+        eps = eps.reshape(-1, 4)                        # axis m: the points, flattened
         peeq_n = np.broadcast_to(np.asarray(state["peeq"], dtype=float), shape).reshape(-1)
         K, G = self.K, self.G
 
@@ -112,6 +114,8 @@ class J2Plasticity(MaterialLaw):
         eps_e[plastic] = (tr[plastic, None] / 3.0 * _NORMAL
                           + s[plastic] / (2.0 * G) * np.array([1.0, 1.0, 1.0, 2.0]))
 
+        # consistent tangent (Simo & Hughes 1998, box 3.2, any hardening):
+        # D = K 1x1 + 2G theta P_dev + 2G (dq/dq_tr - theta) n x n,  theta = q / q_tr
         D = np.broadcast_to(self.D_elastic, (eps.shape[0], 4, 4)).copy()
         if plastic.any():
             n = s_tr[plastic] / norm_tr[plastic, None]                     # unit flow direction
