@@ -43,12 +43,19 @@ def convergence_orders(history):
     return np.log(r[1:]) / np.log(r[:-1])
 
 
-def is_quadratic(history, floor=1e-13):
-    """True when the last step above the floor shows an order close to 2 (>= 1.7)."""
-    r = [x for x in history if x > floor]
-    if len(r) < 3:
+def is_quadratic(history, floor=1e-12):
+    """Newton order at the end of a residual history, or None when too few iterations show it.
+
+    The history is taken from its largest value on (the first iteration of the increment),
+    normalised by it; the order is log(r_{k+1}) / log(r_k) for the last pair of residuals with
+    r_{k+1} above the round-off floor.  2 is quadratic, 1 linear.
+    """
+    r = np.asarray(history, float)
+    if len(r) == 0:
         return None
-    # use the two last residuals above the floor, normalised by the first
-    r = np.asarray(r) / r[0]
-    orders = np.log(r[2:]) / np.log(r[1:-1])
-    return float(orders[-1])
+    r = r[int(np.argmax(r)):]
+    r = r / r[0]
+    r = r[r > floor / max(np.max(history), floor)]
+    if len(r) < 3 or r[1] >= 1.0:
+        return None
+    return float(np.log(r[-1]) / np.log(r[-2]))
