@@ -66,7 +66,7 @@ class Projection:
     d : (g,) signed distance, ``Q = P - d e_u``; ``d > 0`` penetration; ``-inf`` where not found.
     arc : (g,) arc index (-1 where not found).
     s : (g,) local coordinate on the arc (< -1 or > 1 on the end half-lines).
-    tangent : (g, 2) unit foundation tangent at Q (direction of travel).
+    tangent : (g, 2) unit foundation tangent at Q (direction of travel; NaN where not found).
     normal : (g, 2) unit foundation normal at Q, pointing into the body (left normal).
     found : (g,) bool.
     dd_dP : (g, 2) derivative of d w.r.t. P (0 where not found); ``dd/dc = -dd_dP``.
@@ -194,33 +194,37 @@ class Foundation:
         c = np.zeros(2) if c is None else np.asarray(c, float)
         g = P.shape[0]
         s, arc = self._candidates(P, e_u, c)                      # (g, k), (k,)
-        k = s.shape[1]
-        arc_g = np.broadcast_to(arc, (g, k)).ravel()
-        valid = np.isfinite(s).ravel()
-        s_safe = np.where(valid, s.ravel(), 0.0)
-        X, dX = self.evaluate(arc_g, s_safe, c)                  # (g*k, 2)
-        X = X.reshape(g, k, 2)
-        dX = dX.reshape(g, k, 2)
+        # evaluate only the candidates that exist (most lines cross few arcs): h hits
+        hit_g, hit_k = np.nonzero(np.isfinite(s))
+        X, dX = self.evaluate(arc[hit_k], s[hit_g, hit_k], c)     # (h, 2)
         m = _perp(dX)
         m_norm = np.linalg.norm(m, axis=-1)
-        cosn = np.einsum("gki,gi->gk", m, e_u) / np.where(m_norm > 0, m_norm, 1.0)
+        e_h = e_u[hit_g]
+        cosn = np.einsum("hi,hi->h", m, e_h) / np.where(m_norm > 0, m_norm, 1.0)
         # d = e_u . (P - Q) / |e_u|^2: the line parameter, so that Q = P - d e_u holds (and the
         # derivatives below) even for a direction that is not exactly unit
-        dist = np.einsum("gki,gi->gk", P[:, None] - X, e_u) / np.einsum("gi,gi->g", e_u, e_u)[:, None]
-        valid = valid.reshape(g, k) & (m_norm > 0) & (cosn < -self.cos_min)
-        score = np.where(valid, np.abs(dist), np.inf)
-        best = np.argmin(score, axis=1)
+        dist = np.einsum("hi,hi->h", P[hit_g] - X, e_h) / np.einsum("hi,hi->h", e_h, e_h)
+        ok = (m_norm > 0) & (cosn < -self.cos_min)
+        score = np.full(s.shape, np.inf)
+        score[hit_g, hit_k] = np.where(ok, np.abs(dist), np.inf)
+        where = np.full(s.shape, -1)
+        where[hit_g, hit_k] = np.arange(hit_g.size)
         rows = np.arange(g)
-        found = valid[rows, best]
-        Q = np.where(found[:, None], X[rows, best], np.nan)
-        d = np.where(found, dist[rows, best], -np.inf)
-        mb = m[rows, best]
-        tn = dX[rows, best]
+        best = np.argmin(score, axis=1)
+        found = np.isfinite(score[rows, best])
+        h = np.where(found, where[rows, best], 0)
+        if hit_g.size == 0:                                       # nothing crossed at all
+            X = dX = m = np.zeros((1, 2))
+            dist = np.zeros(1)
+        Q = np.where(found[:, None], X[h], np.nan)
+        d = np.where(found, dist[h], -np.inf)
+        mb = np.where(found[:, None], m[h], 0.0)
+        tn = dX[h]
         tn_norm = np.linalg.norm(tn, axis=-1)
-        tangent = tn / np.where(tn_norm > 0, tn_norm, 1.0)[:, None]
-        me = np.einsum("gi,gi->g", mb, e_u)
-        me = np.where(found, me, 1.0)
-        dd_dP = np.where(found[:, None], mb / me[:, None], 0.0)
-        dd_de = np.where(found[:, None], -np.where(found, d, 0.0)[:, None] * dd_dP, 0.0)
-        return Projection(Q=Q, d=d, arc=np.where(found, arc[best], -1), s=np.where(found, s[rows, best], np.nan),
-                          tangent=tangent, normal=_perp(tangent), found=found, dd_dP=dd_dP, dd_de=dd_de)
+        tangent = np.where(found[:, None], tn / np.where(tn_norm > 0, tn_norm, 1.0)[:, None], np.nan)
+        me = np.where(found, np.einsum("gi,gi->g", mb, e_u), 1.0)
+        dd_dP = mb / me[:, None]
+        dd_de = -np.where(found, d, 0.0)[:, None] * dd_dP
+        return Projection(Q=Q, d=d, arc=np.where(found, arc[best], -1),
+                          s=np.where(found, s[rows, best], np.nan), tangent=tangent,
+                          normal=_perp(tangent), found=found, dd_dP=dd_dP, dd_de=dd_de)

@@ -162,15 +162,17 @@ class ContactGroup(Group):
         return None
 
     def _penetration(self, x, c, scale):
-        """d (g,) and D d / D u_new (g, nd) for positions x (f, a, 2) that move with
-        ``scale`` * u_new.  Points not found: d = 0, derivative 0 (open)."""
+        """d (g,) and D d / D u_new (g, nd) (zeros when ``scale`` is 0) for positions x
+        (f, a, 2) that move with ``scale`` * u_new.  Points not found: d = 0, derivative 0."""
         P, t = self._at_points(x)
         e_u, de = _de_u_dt(t)
         pr = self.foundation.project(P, e_u, c)
+        d = np.where(pr.found, pr.d, 0.0)
+        if scale == 0.0:
+            return d, np.zeros((self.ng, self.nd)), pr
         dd_dt = np.einsum("gi,gij->gj", pr.dd_de, de)
         Dd = scale * (np.einsum("gi,giJ->gJ", pr.dd_dP, self._AP)
                       + np.einsum("gi,giJ->gJ", dd_dt, self._At))
-        d = np.where(pr.found, pr.d, 0.0)
         Dd[~pr.found] = 0.0
         return d, Dd, pr
 
@@ -190,15 +192,15 @@ class ContactGroup(Group):
         frozen = self._frozen(ctx)
         frozen_open = None if frozen is None else (frozen == OPEN)
 
-        d_prev, Dd_prev, _ = self._penetration(xo, co, 0.0)
-        Dd_prev = np.zeros_like(Dd_prev)
+        d_prev, Dd_prev, _ = self._penetration(xo, co, 0.0)       # start: fixed w.r.t. u_new
         st = {k: np.array(v, copy=True) for k, v in state.items()}
         D = {k: np.zeros((self.ng, self.nd)) for k in _OUT}
         dc = (cn - co) / nsub
         dP = np.einsum("qa,fai->fqi", self.N, dx).reshape(self.ng, 2) / nsub
         for k in range(1, nsub + 1):
             a_k = k / nsub
-            d_k, Dd_k, _ = self._penetration(xo + a_k * dx, co + a_k * (cn - co), a_k)
+            d_k, Dd_k, _ = self._penetration(xo + a_k * dx, co + a_k * (cn - co),
+                                             a_k if tangent else 0.0)
             a_th = (k - 1 + theta) / nsub
             _, t_th = self._at_points(xo + a_th * dx)
             e_v, dev = _de_v_dt(t_th)
