@@ -21,7 +21,7 @@ KINDS = ("elements", "laws", "contact_laws", "writers", "solvers")
 # Modules holding built-in plugins; imported when entry points are not installed.
 _BUILTIN_MODULES = {
     "elements": ("lagamine_py.elements.solid",),
-    "laws": ("lagamine_py.laws.elastic", "lagamine_py.laws.ramberg_osgood"),
+    "laws": ("lagamine_py.laws.elastic", "lagamine_py.laws.j2", "lagamine_py.laws.ramberg_osgood"),
     "contact_laws": ("lagamine_py.laws.coulomb",),
     "writers": ("lagamine_py.output.vtk", "lagamine_py.output.tables", "lagamine_py.output.status",
                 "lagamine_py.output.nodal"),
