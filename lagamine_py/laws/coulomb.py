@@ -48,7 +48,7 @@ the continuum matrix (10) at the end state.
 
 *Dissipation* ``dissip += int |tau| dlam`` along that same exact path: for a given ``lam`` the
 algebraic equation is linear in ``s``, so ``|tau| = B(lam) + phi(lam) p(s(lam))`` is known in
-closed form and is integrated by 5-point Gauss-Legendre in ``lam`` on each piece between kinks
+closed form and is integrated by 8-point Gauss-Legendre in ``lam`` on each piece between kinks
 (exact when ``HPHI = 0`` or ``p`` is constant; rational and smooth otherwise).
 
 *Re-contact* (``p_old == 0`` and ``d > 0``) starts from ``p = tau = 0`` with the part of ``dv``
@@ -72,7 +72,7 @@ from .base import OPEN, SLIP, STICK, ContactLaw, ReturnMappingError
 
 __all__ = ["Coulomb"]
 
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(5)
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 _ON_SURFACE_RTOL = 1e-10
 
 
@@ -147,6 +147,11 @@ class Coulomb(ContactLaw):
         tangent holds ``p_d``, ``tau_d`` (d/dd at fixed du) and ``tau_du`` (d/ddu at fixed d),
         ``tau_u = tau_d + tau_du``, for elements whose ``d`` and ``du`` vary independently.
         """
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            # masked formulas are evaluated everywhere by np.where; unused lanes may overflow
+            return self._update(state, d, du, dv)
+
+    def _update(self, state, d, du, dv):
         p_old = np.asarray(state["p"], float)
         d, du, dv = (np.broadcast_to(np.asarray(x, float), p_old.shape) for x in (d, du, dv))
         kp, kt = self.kp, self.kt
@@ -169,7 +174,7 @@ class Coulomb(ContactLaw):
         lam0 = np.asarray(state["lam"], float)
         tau_tr = tau0 + kt * dv_c
 
-        plastic, sig = self._loading(tau0, p0, p1, lam0, dv_c, tau_tr, active, recon)
+        plastic, sig = self._loading(tau0, p0, p1, lam0, dv_c, tau_tr, active)
         lam1, dmat, hmat, phi1 = self._return(np.abs(tau_tr), p1, lam0, plastic)
         dlam = np.where(plastic, lam1 - lam0, 0.0)
         if self.indicator == "PREDICTOR":
@@ -186,11 +191,11 @@ class Coulomb(ContactLaw):
                             hmat, phi1)
         return new_state, tan
 
-    def _loading(self, tau0, p0, p1, lam0, dv_c, tau_tr, contact, recon):
+    def _loading(self, tau0, p0, p1, lam0, dv_c, tau_tr, contact):
         """Which points load plastically in this sub-interval, and sgn(tau) while they do.
 
-        ``contact``: points in contact during (part of) the sub-interval; ``recon``: those
-        that start from p = 0 (re-contact).
+        ``contact``: points in contact during (part of) the sub-interval; the others are
+        never plastic.
         """
         kt = self.kt
         b0, hb0 = self.adhesion(lam0)
@@ -200,7 +205,8 @@ class Coulomb(ContactLaw):
         f_tr = np.abs(tau_tr) - b0 - phi0 * p1
         sig_tr = np.where(tau_tr >= 0.0, 1.0, -1.0)
         sig0 = np.where(tau0 != 0.0, np.sign(tau0), np.where(dv_c >= 0.0, 1.0, -1.0))
-        on = contact & ~recon & (f0 >= -_ON_SURFACE_RTOL * (radius0 + np.abs(tau0)))
+        # on the surface at the start (a re-contact starts at tau = p = 0: on it iff B = 0)
+        on = contact & (f0 >= -_ON_SURFACE_RTOL * (radius0 + np.abs(tau0)))
         indicator = sig0 * kt * dv_c - phi0 * (p1 - p0)        # elastic-predictor rates
         if self.indicator == "CLASSICAL":                       # actual (plastic) rates
             h0 = hb0 + hphi0 * p0
@@ -249,7 +255,7 @@ class Coulomb(ContactLaw):
         cuts = [np.clip(_kink(self.b, self.hb), lo, hi), np.clip(_kink(self.phi, self.hphi), lo, hi)]
         edges = np.sort(np.stack([lo, *cuts, hi], axis=-1), axis=-1)       # (g, 4)
         a, c = edges[:, :-1], edges[:, 1:]                                  # (g, 3) pieces
-        lam = 0.5 * (a + c)[..., None] + 0.5 * (c - a)[..., None] * _GL_X   # (g, 3, 5)
+        lam = 0.5 * (a + c)[..., None] + 0.5 * (c - a)[..., None] * _GL_X   # (g, 3, k)
         b, _ = self.adhesion(lam)
         phi, _ = self.friction(lam)
         # s(lam) from |tau_tr(s)| - KT (lam - lam0) = B + phi p(s), linear in s
@@ -270,7 +276,7 @@ class Coulomb(ContactLaw):
         dtau_dp1 = np.where(plastic, sig * kt * phi1 / dmat, 0.0)
         # tau_tr = tau0 + KT dv frac, frac = d/du on a partial re-contact
         dtr_dd = np.where(partial, kt * dv / safe_du, 0.0)
-        dtr_ddu = np.where(partial, -kt * dv * d / safe_du**2, 0.0)
+        dtr_ddu = np.where(partial, -kt * dv * frac / safe_du, 0.0)
         c = contact.astype(float)
         p_d = kp * c
         tau_d = c * (dtau_dp1 * kp + dtau_dtr * dtr_dd)
