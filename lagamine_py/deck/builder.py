@@ -33,6 +33,11 @@ ALIASES = {"CPE8": "Q8PE", "CAX8": "Q8AX", "CPE4": "Q4PE", "CAX4": "Q4AX",
 _NODE_XI = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [0, -1], [1, 0], [0, 1], [-1, 0]], float)
 
 
+# Keywords whose readable data lines are used even when other lines of the block failed
+# (fewer follow-on messages: the nodes of the good lines exist).
+_PARTIAL_OK = {"NODE", "ELEMENT", "NSET", "ELSET", "SURFACE", "BOUNDARY", "CLOAD", "DLOAD"}
+
+
 class _Controls:
     """Stand-in plugin class so that *CONTROLS is validated like a plugin."""
     params = CONTROL_PARAMS
@@ -88,16 +93,19 @@ class _Builder:
         self.step_static = False
         self.model_done = False
         self.later = self._definitions()
+        self.index = 0                       # of the block being read
+        self.solid_failed = False
 
     # ------------------------------------------------------------ helpers
-    def _definitions(self) -> dict[tuple[str, str], tuple[str, int]]:
-        """Where each name is first defined, to say "defined later, at ..." on early use."""
-        out: dict[tuple[str, str], tuple[str, int]] = {}
+    def _definitions(self) -> dict[tuple[str, str], tuple[str, int, int]]:
+        """Where each name is first defined (file, line, block index): a use before it gets
+        "defined later, at ..."; a use after a definition that failed gets no second message."""
+        out: dict[tuple[str, str], tuple[str, int, int]] = {}
 
         def put(kind, name, blk):
             if name:
-                out.setdefault((kind, str(name).upper()), (blk.file, blk.line))
-        for b in self.blocks:
+                out.setdefault((kind, str(name).upper()), (blk.file, blk.line, index))
+        for index, b in enumerate(self.blocks):
             p = b.params
             if b.keyword in ("NODE", "NSET"):
                 put("NSET", p.get("NSET"), b)
@@ -112,11 +120,20 @@ class _Builder:
                              ("CONTACT LAW", "CONTACT LAW"), ("AMPLITUDE", "AMPLITUDE")):
                 if b.keyword == kw:
                     put(kind, p.get("NAME"), b)
-            if b.keyword == "NODE":
+            if b.keyword in ("NODE", "ELEMENT"):
                 for row in b.data:
-                    if row.items and isinstance(row.items[0], Num):
-                        put("NODE", str(row.items[0].text), b)
+                    if row.items and isinstance(row.items[0], Num) and np.isfinite(row.items[0]):
+                        put(b.keyword, str(int(row.items[0])) if row.items[0] == int(row.items[0])
+                            else row.items[0].text, b)
         return out
+
+    def _missing(self, file, line, keyword, kind: str, name, known, prefix: str = "") -> None:
+        """Report a name used before (or without) its definition -- unless its definition
+        came earlier and already failed (reported there)."""
+        seen = self.later.get((kind, str(name).upper()))
+        if seen is not None and seen[2] < self.index:
+            return
+        self.pb.add(file, line, keyword, prefix + self._undefined(kind, name, known))
 
     def _undefined(self, kind: str, name, known) -> str:
         """Message for a name used before (or without) its definition."""
@@ -125,7 +142,7 @@ class _Builder:
                  "FOUNDATION": "foundation", "CONTACT LAW": "contact law", "AMPLITUDE": "amplitude",
                  "NODE": "node", "ELEMENT": "element"}[kind]
         later = self.later.get((kind, key))
-        if later is not None:
+        if later is not None and later[2] > self.index:
             return (f"{label} {key} is used before it is defined (defined later, at {later[0]}:{later[1]}); "
                     f"define it first")
         hint = did_you_mean(key, [str(k) for k in known]) if kind not in ("NODE", "ELEMENT") else ""
@@ -155,25 +172,26 @@ class _Builder:
     def _amplitude(self, blk: Block, name) -> bool:
         if name is None or name in self.m.amplitudes:
             return True
-        self.pb.at(blk, self._undefined("AMPLITUDE", name, self.m.amplitudes))
+        self._missing(blk.file, blk.line, blk.keyword, "AMPLITUDE", name, self.m.amplitudes)
         return False
 
     def _nodes_of(self, blk: Block, row, target) -> np.ndarray | None:
         """Node rows of a node id or node set name."""
         if isinstance(target, int):
             if target not in self.row_of:
-                self.pb.add(row.file, row.line, blk.keyword, self._undefined("NODE", target, ()))
+                self._missing(row.file, row.line, blk.keyword, "NODE", target, ())
                 return None
             return np.array([self.row_of[target]])
         if target not in self.m.nsets:
-            self.pb.add(row.file, row.line, blk.keyword, self._undefined("NSET", target, self.m.nsets))
+            self._missing(row.file, row.line, blk.keyword, "NSET", target, self.m.nsets)
             return None
         return np.asarray(self.m.nsets[target])
 
     # ------------------------------------------------------------ driver
     def build(self) -> Model:
-        for blk in self.blocks:
+        for self.index, blk in enumerate(self.blocks):
             self._block(blk)
+        self.index = len(self.blocks)
         if self.step is not None:
             self.pb.at(self.step.where, f"*END STEP missing: step {self.step.name} is not closed "
                                         f"before the end of the deck")
@@ -193,7 +211,7 @@ class _Builder:
             return                                   # expanded (or reported) by the reader
         if spec is None:
             if not blk.broken:
-                self.pb.at(blk, f"unknown keyword *{kw}{did_you_mean(kw, KEYWORDS)}")
+                self.pb.at(blk, f"unknown keyword *{kw}" + did_you_mean(kw, KEYWORDS).replace("mean ", "mean *"))
             return
         if not self._scope(blk, spec):
             return
@@ -204,14 +222,18 @@ class _Builder:
         else:
             params = check_params(spec, blk, self.pb)
         if params is None:
+            self.solid_failed |= kw == "SOLID"
             if kw == "STEP":                          # keep the step structure for later messages
                 self._open_step(blk, {"NAME": None, "NLGEOM": False, "INC": 1000})
             elif kw == "END STEP":
                 self._end_step(blk, {}, None)
             return
         ok, data = check_data(spec, data_spec(spec, params), blk, self.pb)
-        if not ok and kw not in ("STEP", "END STEP"):
-            return
+        if not ok:
+            if kw == "SOLID":
+                self.solid_failed = True
+            if kw not in ("STEP", "END STEP") and (kw not in _PARTIAL_OK or data is None):
+                return
         getattr(self, "_kw_" + kw.lower().replace(" ", "_"))(blk, params, data)
 
     def _scope(self, blk: Block, spec) -> bool:
@@ -304,10 +326,13 @@ class _Builder:
             return False
         missing = [n for n in nodes if n not in self.row_of]
         if missing:
+            seen = [self.later.get(("NODE", str(n))) for n in missing]
+            if all(w is not None and w[2] < self.index for w in seen):
+                return False                   # their *NODE lines failed and were reported
+            later = any(w is not None and w[2] >= self.index for w in seen)
             self.pb.add(file, line, kw, f"element {eid} uses node{'s' * (len(missing) > 1)} {_few(missing)} "
                                         f"that {'are' if len(missing) > 1 else 'is'} not defined"
-                                        + (" before this line" if any(("NODE", str(n)) in self.later
-                                                                      for n in missing) else ""))
+                                        + (" before this line" if later else ""))
             return False
         if len(set(nodes)) != len(nodes):
             twice = sorted({n for n in nodes if nodes.count(n) > 1})
@@ -401,14 +426,14 @@ class _Builder:
             for it in items:
                 if isinstance(it, int):
                     if it not in known_ids:
-                        self.pb.add(row.file, row.line, blk.keyword, self._undefined(what, it, ()))
+                        self._missing(row.file, row.line, blk.keyword, what, it, ())
                         ok = False
                         break
                     out.append(self.row_of[it] if kind == "NSET" else it)
                 elif it in sets:
                     out.extend(int(v) for v in sets[it])
                 else:
-                    self.pb.add(row.file, row.line, blk.keyword, self._undefined(kind, it, sets))
+                    self._missing(row.file, row.line, blk.keyword, kind, it, sets)
                     ok = False
         return out if ok else None
 
@@ -425,11 +450,11 @@ class _Builder:
     def _elements_of(self, blk, row, target) -> list[int] | None:
         if isinstance(target, int):
             if target not in self.elem_at:
-                self.pb.add(row.file, row.line, blk.keyword, self._undefined("ELEMENT", target, ()))
+                self._missing(row.file, row.line, blk.keyword, "ELEMENT", target, ())
                 return None
             return [target]
         if target not in self.m.elsets:
-            self.pb.add(row.file, row.line, blk.keyword, self._undefined("ELSET", target, self.m.elsets))
+            self._missing(row.file, row.line, blk.keyword, "ELSET", target, self.m.elsets)
             return None
         return [int(e) for e in self.m.elsets[target]]
 
@@ -483,12 +508,13 @@ class _Builder:
         ok = True
         self.used_materials.add(mat)
         if mat not in self.m.materials:
-            self.pb.at(blk, self._undefined("MATERIAL", mat, self.m.materials))
+            self._missing(blk.file, blk.line, blk.keyword, "MATERIAL", mat, self.m.materials)
             ok = False
         if elset not in self.m.elsets:
-            self.pb.at(blk, self._undefined("ELSET", elset, self.m.elsets))
+            self._missing(blk.file, blk.line, blk.keyword, "ELSET", elset, self.m.elsets)
             ok = False
         if not ok:
+            self.solid_failed = True
             return
         index = len(self.solids)
         self.solids.append((blk, params))
@@ -531,7 +557,7 @@ class _Builder:
                                  ("FOUNDATION", "FOUNDATION", self.m.foundations),
                                  ("LAW", "CONTACT LAW", self.m.contact_laws)):
             if params[key] not in table:
-                self.pb.at(blk, f"{key}={params[key]}: " + self._undefined(kind, params[key], table))
+                self._missing(blk.file, blk.line, blk.keyword, kind, params[key], table, f"{key}={params[key]}: ")
                 ok = False
         if ok:
             self.m.contacts.append(ContactSpec(params["SURFACE"], params["FOUNDATION"], params["LAW"],
@@ -573,7 +599,7 @@ class _Builder:
                 self.pb.at(mat.where, f"material {name} is never assigned: no *SOLID uses it")
         for grp in self.groups:
             bare = [e for e in grp.ids if e not in self.solid_of]
-            if bare:
+            if bare and not self.solid_failed:
                 self.pb.at(grp.block, f"element{'s' * (len(bare) > 1)} {_few(bare)} "
                                       f"{'have' if len(bare) > 1 else 'has'} no *SOLID (no material)")
         self._axisymmetry()
@@ -715,7 +741,7 @@ class _Builder:
                 self.pb.add(row.file, row.line, blk.keyword, f"load type must be P (pressure), got {kind}")
                 continue
             if surf not in self.m.surfaces:
-                self.pb.add(row.file, row.line, blk.keyword, self._undefined("SURFACE", surf, self.m.surfaces))
+                self._missing(row.file, row.line, blk.keyword, "SURFACE", surf, self.m.surfaces)
                 continue
             self.step.dloads.append(DLoad(surf, "P", value, params["AMPLITUDE"],
                                           Where(row.file, row.line, blk.keyword)))
@@ -724,7 +750,7 @@ class _Builder:
         name = params["NAME"]
         ok = self._amplitude(blk, params["AMPLITUDE"])
         if name not in self.m.foundations:
-            self.pb.at(blk, self._undefined("FOUNDATION", name, self.m.foundations))
+            self._missing(blk.file, blk.line, blk.keyword, "FOUNDATION", name, self.m.foundations)
             ok = False
         if ok:
             dx, dy = rows[0][1]

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import bisect
 import re
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -135,11 +136,11 @@ class _Grammar:
     """The pyparsing pieces; ``deck`` parses a whole file into a list of line objects."""
 
     def __init__(self):
+        self._local = threading.local()          # line starts of the text being parsed, per thread
         with _newline_significant():
             self._build()
 
     def _build(self):
-        self.lineno = None                       # set per parse: loc -> line number
         nl = pp.Literal("\n").set_name("end of line").suppress()
         def eol(what):
             return pp.FollowedBy((pp.Literal("\n") | pp.StringEnd()).set_name(what))
@@ -186,6 +187,10 @@ class _Grammar:
         self.strict_data = data_line + pp.StringEnd()
         self.strict_item = item + pp.StringEnd()
 
+    def lineno(self, loc: int) -> int:
+        """Line number (1-based) of a position in the text being parsed."""
+        return bisect.bisect_right(self._local.starts, loc) + 1
+
     def _data_line(self, s, loc, t):
         return DataLine(self.lineno(loc), list(t))
 
@@ -195,13 +200,12 @@ class _Grammar:
 
     def parse_text(self, text: str) -> list:
         """Line objects of a whole file's text."""
-        starts = [m.end() for m in re.finditer("\n", text)]
-        self.lineno = lambda loc: bisect.bisect_right(starts, loc) + 1
+        self._local.starts = [m.end() for m in re.finditer("\n", text)]
         return list(self.deck.parse_string(text, parse_all=True))
 
     def why_bad(self, text: str) -> str:
         """The reason a line fits no form, from the strict grammar of what it looks like."""
-        self.lineno = lambda loc: 1
+        self._local.starts = []
         strict = self.strict_kw if text.lstrip().startswith("*") else self.strict_data
         what = "keyword line" if strict is self.strict_kw else "data line"
         try:

@@ -257,8 +257,8 @@ def _shape(data: Data) -> str:
     return ", ".join(labels)
 
 
-def check_rows(data: Data, block: Block, problems: Problems) -> list[tuple[DataRow, list]] | None:
-    """Rows of converted values; None after reporting problems."""
+def check_rows(data: Data, block: Block, problems: Problems) -> tuple[list[tuple[DataRow, list]], bool]:
+    """Rows of converted values (the readable ones) and whether all were (problems reported)."""
     cols, nrep = data.cols, data.repeat
     nreq = sum(not c.optional for c in cols)
     out, ok = [], True
@@ -282,7 +282,7 @@ def check_rows(data: Data, block: Block, problems: Problems) -> list[tuple[DataR
         if row_ok:
             out.append((row, values))
         ok &= row_ok
-    return out if ok else None
+    return out, ok
 
 
 def check_pairs(block: Block, problems: Problems) -> list[tuple[DataRow, Pair]] | None:
@@ -312,8 +312,8 @@ def data_spec(spec: Keyword, params: dict[str, Any]) -> Data:
 
 
 def check_data(spec: Keyword, data: Data, block: Block, problems: Problems):
-    """Converted data: rows (list of (row, values)), pairs (list of (row, Pair)), text or None.
-    Returns (ok, converted)."""
+    """Returns (ok, converted): rows (list of (row, values): the readable rows even when not
+    ok), pairs (list of (row, Pair), None when not ok) or the *HEADING text."""
     n = len(block.data)
     if data.form in ("none", "text"):
         if block.data:
@@ -330,8 +330,10 @@ def check_data(spec: Keyword, data: Data, block: Block, problems: Problems):
         problems.add(row.file, row.line, block.keyword,
                      f"expected {data.max_lines} data line{'s' * (data.max_lines > 1)} ({data.doc}), got {n}")
         return False, None
-    conv = check_pairs(block, problems) if data.form == "pairs" else check_rows(data, block, problems)
-    return conv is not None, conv
+    if data.form == "pairs":
+        conv = check_pairs(block, problems)
+        return conv is not None, conv
+    return check_rows(data, block, problems)[::-1]
 
 
 # ---------------------------------------------------------------- reference
