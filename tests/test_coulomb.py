@@ -71,7 +71,7 @@ def reference(par, u_path, v_path, nstep):
                 continue
             te, pe = tau + KT * dvc, p + KP * duc
             se = math.copysign(1.0, te)
-            if abs(te) - b - ph * pe > 1e-9 * (b + ph * pe):  # elastic to the crossing, then plastic
+            if abs(te) - b - ph * pe > 1e-9 * (b + ph * pe):  # elastic to the crossing, plastic
                 a = (b + ph * p - se * tau) / (se * KT * dvc - ph * KP * duc)
                 a = min(max(a, 0.0), 1.0)
                 p, tau = p + KP * duc * a, tau + KT * dvc * a
@@ -221,6 +221,16 @@ def test_classical_indicator_fails_on_softening_predictor_does_not():
     assert bad["status"][first_slip + 1] == STICK and good["status"][first_slip + 1] == SLIP
 
 
+def test_classical_indicator_cannot_unload_without_hardening():
+    """H = 0: the classical indicator is 0, never negative, so a reversal is not seen as an
+    unloading and tau is dragged along the surface; the predictor unloads with slope KT."""
+    u, v = [0.0, 0.01, 0.01, 0.01], [0.0, 0.0, 0.05, 0.049]
+    good = drive(Coulomb(**BASE), u, v)
+    bad = drive(Coulomb(**BASE, INDICATOR="CLASSICAL"), u, v)
+    np.testing.assert_allclose(good["tau"][2:], [4.0, 3.5], rtol=1e-13)
+    np.testing.assert_allclose(bad["tau"][2:], [4.0, 4.0], rtol=1e-13)
+
+
 @pytest.mark.parametrize("case", ["perfect", "softening_B_to_zero", "hardening"])
 def test_unloading_from_slip_is_elastic_with_slope_kt(case):
     par = dict(BASE) if case == "perfect" else HARDENING_CASES[case]
@@ -321,7 +331,8 @@ def test_tangent_matches_central_differences(extra):
         "tau_v": (tau_of(dv_=dv + h)["tau"] - tau_of(dv_=dv - h)["tau"]) / (2 * h),
         "tau_tau": (tau_of(tau0=tau_old + h * 10)["tau"]
                     - tau_of(tau0=tau_old - h * 10)["tau"]) / (20 * h),
-        "tau_u": (tau_of(d_=d + h, du_=du + h)["tau"] - tau_of(d_=d - h, du_=du - h)["tau"]) / (2 * h),
+        "tau_u": (tau_of(d_=d + h, du_=du + h)["tau"]
+                  - tau_of(d_=d - h, du_=du - h)["tau"]) / (2 * h),
         "p_u": (tau_of(d_=d + h, du_=du + h)["p"] - tau_of(d_=d - h, du_=du - h)["p"]) / (2 * h),
         "tau_d": (tau_of(d_=d + h)["tau"] - tau_of(d_=d - h)["tau"]) / (2 * h),
         "tau_du": (tau_of(du_=du + h)["tau"] - tau_of(du_=du - h)["tau"]) / (2 * h),

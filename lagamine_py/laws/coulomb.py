@@ -252,20 +252,20 @@ class Coulomb(ContactLaw):
             return np.zeros_like(lam0)
         lam1 = lam0 + dlam
         lo, hi = np.minimum(lam0, lam1), np.maximum(lam0, lam1)
-        cuts = [np.clip(_kink(self.b, self.hb), lo, hi), np.clip(_kink(self.phi, self.hphi), lo, hi)]
+        cuts = [np.clip(k, lo, hi) for k in (_kink(self.b, self.hb), _kink(self.phi, self.hphi))]
         edges = np.sort(np.stack([lo, *cuts, hi], axis=-1), axis=-1)       # (g, 4)
-        a, c = edges[:, :-1], edges[:, 1:]                                  # (g, 3) pieces
+        a, c = edges[..., :-1], edges[..., 1:]                              # (g, 3) pieces
         lam = 0.5 * (a + c)[..., None] + 0.5 * (c - a)[..., None] * _GL_X   # (g, 3, k)
         b, _ = self.adhesion(lam)
         phi, _ = self.friction(lam)
         # s(lam) from |tau_tr(s)| - KT (lam - lam0) = B + phi p(s), linear in s
-        ex = lambda x: x[:, None, None]  # noqa: E731  (g,) -> (g, 1, 1)
+        ex = lambda x: x[..., None, None]  # noqa: E731  (g,) -> (g, 1, 1)
         num = self.kt * (lam - ex(lam0)) + b + phi * ex(p0) - ex(sig * tau0)
         den = ex(sig * self.kt * dv_c) - phi * ex(dp)
         ok = np.abs(den) > 1e-300
         s = np.clip(np.where(ok, num / np.where(ok, den, 1.0), 1.0), 0.0, 1.0)
         abs_tau = b + phi * (ex(p0) + ex(dp) * s)
-        piece = np.einsum("gpk,k->gp", abs_tau, _GL_W) * 0.5 * (c - a)
+        piece = np.einsum("...pk,k->...p", abs_tau, _GL_W) * 0.5 * (c - a)
         return np.where(act, np.sign(dlam) * piece.sum(axis=-1), 0.0)
 
     def _tangent(self, contact, plastic, recon, partial, d, safe_du, dv, frac, sig, dmat,
