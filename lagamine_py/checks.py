@@ -34,7 +34,9 @@ compare), the relative ``errors`` per quantity and the headline ``error``.  Type
     ``NSET``, default the node set with the largest ``|RF2|``), ``r = R0 + u1`` of the outermost
     node, log strain ``ln(h / H0)`` with ``h`` the current height; closed form
     ``eps = s/E + ALPHA (SIGMA0/E) (s/SIGMA0)^N``; ``error`` = max over steps of the relative
-    error of ``|eps|``.
+    error of ``|eps|`` at the measured stress.  Also reported: the relative error of the stress
+    against the curve's stress at the measured strain (``errors["stress"]``, about ``N`` times
+    smaller on the plastic part of the curve).
 ``LAME`` (``P, A, B, E, NU``)
     Elastic thick cylinder under internal pressure, axisymmetric with plane-strain ends: the
     radial displacement of the inner and outer surfaces (mean ``u1`` of the nodes at the smallest
@@ -58,6 +60,7 @@ from typing import Any, Callable
 
 import numpy as np
 from scipy.integrate import trapezoid
+from scipy.optimize import brentq
 
 from .results import RunResults
 
@@ -387,15 +390,23 @@ def check_uniaxial_ro(params: dict[str, Any], run: RunResults) -> dict[str, Any]
         h = float(y.max() - y.min())
         s = F / (0.5 * r**2)
         eps = abs(math.log(h / h0))
-        eps_cf = s / E + alpha * (s0 / E) * (s / s0) ** n
-        rows.append((int(step), s, eps, eps_cf, r))
+        eps_cf = _ro_strain(s, E, s0, alpha, n)
+        # the stress on the curve at the measured strain: monotone in s, below E eps
+        s_cf = brentq(lambda t: _ro_strain(t, E, s0, alpha, n) - eps, 0.0, E * eps) if eps > 0 else 0.0
+        rows.append((int(step), s, eps, eps_cf, s_cf, r))
     if not rows:
         raise CheckError(f"no step has both displacements.csv rows and reactions of {want}")
-    errs = [_rel(e, ecf) for _, _, e, ecf, _ in rows]
+    errs = [_rel(e, ecf) for _, _, e, ecf, _, _ in rows]
     k = int(np.argmax(errs))
-    step, s, eps, eps_cf, r = rows[k]
+    step, s, eps, eps_cf, s_cf, r = rows[k]
     return _result({"stress": s, "strain": eps, "radius": r, "step": step},
-                   {"strain": eps_cf}, {"strain": errs[k]})
+                   {"strain": eps_cf, "stress": s_cf},
+                   {"strain": errs[k], "stress": _rel(s, s_cf)}, errs[k])
+
+
+def _ro_strain(s: float, E: float, s0: float, alpha: float, n: float) -> float:
+    """Ramberg-Osgood uniaxial strain ``s/E + alpha (s0/E) (s/s0)^n`` (s >= 0)."""
+    return s / E + alpha * (s0 / E) * (s / s0) ** n
 
 
 def lame_radial_displacement(r, P: float, A: float, B: float, E: float, nu: float):

@@ -23,10 +23,13 @@ included: the work done), ``increments`` (converged) and ``failed_attempts``, th
 ``*CHECK`` columns from :func:`lagamine_py.checks.check_columns` (``<check>_error``, measured
 ``<check>_<qty>``, closed form ``<check>_<qty>_cf``).
 
-A point that finished (whatever its exit code) leaves ``POINTDIR/point.json``; a rerun of the
-same sweep skips those points and reuses their rows, so an interrupted sweep resumes where it
-stopped.  A point whose worker failed (an exception, a lost dask worker) is recorded in
-sweep.csv with status 1 and the reason, but leaves no ``point.json``: a rerun tries it again.
+A point whose run finished leaves ``POINTDIR/point.json`` (its row and full check results).  A
+rerun of the same sweep (or of a grid extended by more values) skips the points that ran to the
+end (status 0) or stopped on non-convergence (status 3), reusing their rows, so an interrupted
+sweep resumes where it stopped; points with a deck error (2), a crash (1) or a signal are run
+again, on the view that their deck or installation has been fixed in between.  A point whose
+worker failed (an exception, a lost dask worker) is recorded in sweep.csv with status 1 and the
+reason, and leaves no ``point.json``.
 """
 from __future__ import annotations
 
@@ -57,6 +60,8 @@ POINT_FILE = "point.json"
 SWEEP_FILE = "sweep.csv"
 FIXED_COLUMNS = ("status", "reason", "wall_s", "cpu_s", "newton_iterations", "increments",
                  "failed_attempts")
+DASK_CONNECT_TIMEOUT = "30s"
+RESUME_SKIPS = (0, 3)      # exit codes of a point that a rerun does not run again
 THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _UNSAFE = re.compile(r"[^A-Za-z0-9.+\-]")
@@ -130,8 +135,7 @@ def run_point(deck: Path, params: dict[str, str], pointdir: Path, *,
             env.setdefault(var, str(threads))
     cpu = math.nan
     with open(pointdir / "run.stdout", "w") as out, open(pointdir / "run.stderr", "w") as err:
-        proc = subprocess.Popen(argv, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env,
-                                cwd=pointdir)
+        proc = subprocess.Popen(argv, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env)
         try:
             if hasattr(os, "wait4"):
                 _, wstatus, usage = os.wait4(proc.pid, 0)
@@ -155,8 +159,10 @@ def _last_line(path: Path) -> str:
 
 
 def _reason(pointdir: Path, status: int) -> str:
-    """Why the run stopped: the last line of its stderr, else of its log, else of its stdout."""
-    for path in (pointdir / "run.stderr", *sorted(pointdir.glob("*.log")), pointdir / "run.stdout"):
+    """Why the run stopped: the last line of its stderr (``run`` prints its closing message there
+    when it fails, a crash its exception), else of its stdout (the closing message of a run that
+    finished), else of its log."""
+    for path in (pointdir / "run.stderr", pointdir / "run.stdout", *sorted(pointdir.glob("*.log"))):
         line = _last_line(path)
         if line:
             return line
@@ -207,13 +213,17 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
 
 
 def finished_row(pointdir: Path) -> dict[str, Any] | None:
-    """The stored row of a finished point, or None (no marker, or an unreadable one)."""
+    """The stored row of a point a rerun skips: one that ran to the end (status 0) or stopped on
+    non-convergence (3).  None otherwise: no marker, an unreadable one, or a deck error (2), a
+    crash (1) or a signal, which say the deck or the installation needed fixing: run again."""
     try:
         data = json.loads((Path(pointdir) / POINT_FILE).read_text())
     except (OSError, ValueError):
         return None
     row = data.get("row") if isinstance(data, dict) else None
-    return row if isinstance(row, dict) and "status" in row else None
+    if not isinstance(row, dict) or row.get("status") not in RESUME_SKIPS:
+        return None
+    return row
 
 
 def load_point_checks(deck: Path, params: dict[str, str]) -> list[dict[str, Any]]:
@@ -283,7 +293,11 @@ def _run_dask(tasks, address: str, done: Callable[[int, dict], None]) -> None:
     except ImportError as exc:
         raise SweepError(f"--scheduler needs dask.distributed ({exc}); install it with "
                          f"pip install \"lagamine_py[dask]\"") from None
-    with Client(address, timeout="30s") as client:
+    try:
+        client = Client(address, timeout=DASK_CONNECT_TIMEOUT)
+    except (OSError, TimeoutError) as exc:
+        raise SweepError(f"cannot connect to the dask scheduler at {address}: {exc}") from None
+    with client:
         futures = {}
         for idx, args in tasks:
             key = f"lagamine-point-{Path(args[2]).name}-{uuid.uuid4().hex[:8]}"

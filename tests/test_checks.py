@@ -252,7 +252,7 @@ UNI = {"name": "RO", "type": "UNIAXIAL_RO", "params": RO}
 def test_uniaxial_ro_exact(tmp_path):
     write_compression(tmp_path, [180.0, 260.0])
     (res,) = evaluate_checks([UNI], tmp_path)
-    assert res["message"] == "" and res["error"] < 1e-12
+    assert res["message"] == "" and res["error"] < 1e-12 and res["errors"]["stress"] < 1e-9
 
 
 def test_uniaxial_ro_perturbed_force(tmp_path):
@@ -261,6 +261,9 @@ def test_uniaxial_ro_perturbed_force(tmp_path):
     s = 1.01 * 260.0
     assert res["measured"]["stress"] == pytest.approx(s, rel=1e-12)
     assert res["error"] == pytest.approx(abs(ro_strain(260.0) - ro_strain(s)) / ro_strain(s), rel=1e-9)
+    # the strain is that of 260 MPa on the curve: the stress is 1 % off
+    assert res["closed_form"]["stress"] == pytest.approx(260.0, rel=1e-9)
+    assert res["errors"]["stress"] == pytest.approx(0.01, rel=1e-6)
 
 
 LAME = {"name": "TUBE", "type": "LAME", "params": {"P": 100.0, "A": 10.0, "B": 20.0, "E": 2e5, "NU": 0.3}}

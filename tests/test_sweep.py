@@ -243,6 +243,12 @@ def test_deck_errors_are_recorded_without_running(tmp_path, stand_in, monkeypatc
     assert runner.ran == [{"MESH": "coarse"}]
     rows = read_sweep(out)
     assert rows[1]["status"] == "2" and "cylinder_nope.inp" in rows[1]["reason"]
+    # once the deck is fixed, a rerun runs that point (and only that one)
+    monkeypatch.setattr(sw, "load_point_checks", lambda deck_, params: [])
+    again = Counting(command)
+    assert sw.sweep_main(deck, ["MESH=coarse,nope"], out, runner=again) == 0
+    assert again.ran == [{"MESH": "nope"}]
+    assert [r["status"] for r in read_sweep(out)] == ["0", "0"]
 
 
 # ---------------------------------------------------------------- dask.distributed
@@ -276,3 +282,16 @@ def test_dask_sweep_through_a_local_cluster(tmp_path, stand_in):
     rows = read_sweep(out)
     check_rows(rows, ["0", "5"], ["1e6", "2e6"])
     assert {(out / r["point"] / "worker.txt").read_text() for r in rows} <= workers
+
+
+def test_an_unreachable_scheduler_is_a_clear_error(tmp_path, stand_in, monkeypatch, capsys):
+    pytest.importorskip("distributed", reason="dask.distributed is not installed (optional extra)")
+    import socket
+    with socket.socket() as s:              # a loopback port that nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    monkeypatch.setattr(sw, "DASK_CONNECT_TIMEOUT", "1s")
+    _, deck = stand_in
+    code = sw.sweep_main(deck, ["KP=1e6"], tmp_path / "s", scheduler=f"tcp://127.0.0.1:{port}")
+    assert code == 2
+    assert f"cannot connect to the dask scheduler at tcp://127.0.0.1:{port}" in capsys.readouterr().err
