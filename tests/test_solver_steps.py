@@ -238,3 +238,33 @@ def test_foundation_motion_ramped_and_held(tmp_path):
     assert np.allclose(rec.results[-1].foundations["F"], pts + [1.0, -2.0])
     # *OUTPUT FREQUENCY=3 with 2 increments: only the step's last increment carries fields
     assert [r.write_fields for r in rec.results] == [False, True, True, True]
+
+
+class OneSided(Springs):
+    """A penalty support: force k d only while d = -u > 0 (pressed into it), nothing at d <= 0,
+    as a contact point that rests on its foundation at d = 0 (open: no stiffness at all)."""
+
+    def compute(self, u_new, u_old, state, ctx, tangent=True):
+        d = -self.elongation(u_new)
+        closed = d > 0
+        f, K = self.blocks(-self.k * np.where(closed, d, 0.0), self.k * closed)
+        return GroupResult(f, K if tangent else None, {})
+
+    def points(self, u, state, ctx):
+        return None
+
+
+def test_body_resting_on_an_open_support_is_stabilised(tmp_path):
+    """Two nodes tied by a spring, resting at d = 0 on one-sided supports, pressed down: the
+    first tangent is singular (floating body); the contact-model stabilisation (tangent only)
+    finds the exact equilibrium d = F / k_support."""
+    F, ks = 6.0, 1000.0
+    model = make_model(2, [step(cloads=[cload(0, 2, -F), cload(1, 2, -F)])])
+    groups = [OneSided([[GROUND, 1], [GROUND, 3]], ks), Springs([[0, 2], [GROUND, 0]], 10.0),
+              Springs([[1, 3]], 10.0)]
+    out, rec = solve(tmp_path, model, groups, kinds=["contact", "spring", "spring"])
+    assert out.status == 0, out.message
+    assert np.allclose(rec.results[-1].u[:, 1], -F / ks, rtol=1e-12)
+    # the same model without contact groups stops at once, naming the floating DOFs
+    out, rec = solve(tmp_path, model, groups, kinds=["spring", "spring", "spring"])
+    assert out.status == 3 and "node 10 y" in out.message
