@@ -425,7 +425,7 @@ def check_lame(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
     tol = 1e-9 * max(abs(B), 1.0)
     u_in = float(d["u1"][np.abs(x - x.min()) <= tol].mean())
     u_out = float(d["u1"][np.abs(x - x.max()) <= tol].mean())
-    ui_cf, uo_cf = lame_radial_displacement([A, B], P, A, B, E, nu)
+    ui_cf, uo_cf = (float(u) for u in lame_radial_displacement([A, B], P, A, B, E, nu))
     return _result({"u_inner": u_in, "u_outer": u_out}, {"u_inner": ui_cf, "u_outer": uo_cf},
                    {"u_inner": _rel(u_in, ui_cf), "u_outer": _rel(u_out, uo_cf)})
 

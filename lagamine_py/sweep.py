@@ -39,6 +39,7 @@ import json
 import math
 import os
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -126,7 +127,8 @@ def run_point(deck: Path, params: dict[str, str], pointdir: Path, *,
     """
     pointdir = Path(pointdir)
     pointdir.mkdir(parents=True, exist_ok=True)
-    argv = [*(command or [sys.executable, "-m", "lagamine_py", "run"]), str(deck), "-o", str(pointdir), "-q"]
+    argv = [*(command or [sys.executable, "-m", "lagamine_py", "run"]),
+            str(deck), "-o", str(pointdir), "-q"]
     for name, value in params.items():
         argv += ["--param", f"{name}={value}"]
     env = dict(os.environ)
@@ -162,11 +164,13 @@ def _reason(pointdir: Path, status: int) -> str:
     """Why the run stopped: the last line of its stderr (``run`` prints its closing message there
     when it fails, a crash its exception), else of its stdout (the closing message of a run that
     finished), else of its log."""
+    if status < 0:
+        return f"killed by signal {signal.Signals(-status).name}"
     for path in (pointdir / "run.stderr", pointdir / "run.stdout", *sorted(pointdir.glob("*.log"))):
         line = _last_line(path)
         if line:
             return line
-    return f"killed by signal {-status}" if status < 0 else f"exit status {status}"
+    return f"exit status {status}"
 
 
 def run_stats(pointdir: Path) -> dict[str, Any]:
@@ -189,6 +193,7 @@ def point_task(deck: Path, params: dict[str, str], pointdir: Path, checks: list[
     run finished.  Runs in a worker (local process or dask); never raises for a failed run."""
     pointdir = Path(pointdir)
     pointdir.mkdir(parents=True, exist_ok=True)
+    (pointdir / POINT_FILE).unlink(missing_ok=True)      # a rerun: not finished until it is
     row: dict[str, Any] = {"point": pointdir.name, **params}
     t0 = time.perf_counter()
     try:

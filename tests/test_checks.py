@@ -278,9 +278,9 @@ def test_lame(tmp_path, factor):
     s_r, s_t = C1 - C2 / x**2, C1 + C2 / x**2
     u = factor * x * ((1 + nu) / e) * ((1 - nu) * s_t - nu * s_r)
     n = len(x)
-    write_csv(tmp_path / "displacements.csv", {"step": [1] * n, "increment": [5] * n, "time": [1.0] * n,
-                                               "node": list(range(1, n + 1)), "x": x, "y": [0.0, 1.0] * (n // 2),
-                                               "u1": u, "u2": [0.0] * n})
+    write_csv(tmp_path / "displacements.csv",
+              {"step": [1] * n, "increment": [5] * n, "time": [1.0] * n, "node": list(range(1, n + 1)),
+               "x": x, "y": [0.0, 1.0] * (n // 2), "u1": u, "u2": [0.0] * n})
     (res,) = evaluate_checks([LAME], tmp_path)
     assert res["error"] == pytest.approx(factor - 1, abs=1e-12)
 
@@ -299,12 +299,13 @@ def write_sta(d, times, failed_last=False):
 def test_limit_pressure(tmp_path):
     p_lim = 2 / math.sqrt(3) * 250 * math.log(2.0)
     assert p_lim == pytest.approx(200.09, abs=0.01)                     # the deck's number
-    chk = {"name": "LIM", "type": "LIMIT_PRESSURE", "params": {"P": 1.03 * p_lim, "SIGMAY": 250, "A": 10, "B": 20}}
+    tube = {"SIGMAY": 250, "A": 10, "B": 20}
+    chk = {"name": "LIM", "type": "LIMIT_PRESSURE", "params": {"P": 1.03 * p_lim, **tube}}
     t_stop = 1.01 / 1.03
     write_sta(tmp_path, [0.5, t_stop, 0.99], failed_last=True)           # stopped at 1.01 p_lim
     (res,) = evaluate_checks([chk], tmp_path)
     assert res["error"] == pytest.approx(0.01, rel=1e-9)
-    below = {"name": "LIM", "type": "LIMIT_PRESSURE", "params": {"P": 0.98 * p_lim, "SIGMAY": 250, "A": 10, "B": 20}}
+    below = {"name": "LIM", "type": "LIMIT_PRESSURE", "params": {"P": 0.98 * p_lim, **tube}}
     write_sta(tmp_path, [0.5, 1.0])
     assert evaluate_checks([below], tmp_path)[0]["error"] == 0.0
     write_sta(tmp_path, [0.5, 0.9])                                       # stopped early: 0.882 p_lim

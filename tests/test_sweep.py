@@ -37,6 +37,9 @@ STAND_IN = textwrap.dedent('''
     out = pathlib.Path(out)
     open(out / "argv.txt", "w").write("\\n".join(args))
     sta = ["step,step_name,increment,time,dt,iterations,residual,cutbacks,failed,reason"]
+    if params.get("KP") == "kill":
+        import os, signal
+        os.kill(os.getpid(), signal.SIGKILL)
     if params.get("KP") == "bad":
         sta.append("1,PRESS,1,0.5,0.5,3,1e-9,0,no,")
         sta.append("1,PRESS,2,1.0,0.5,12,1e3,1,yes,residual diverged")
@@ -133,6 +136,12 @@ def test_run_point_reports_why_a_run_stopped(tmp_path, stand_in):
     out = sw.run_point(deck, {"KP": "bad"}, tmp_path / "pt", command=command)
     assert out["status"] == 3
     assert out["reason"] == "lagamine-py: step 1 PRESS did not converge at time 0.5: residual diverged"
+
+
+def test_run_point_reports_a_killed_run(tmp_path, stand_in):
+    command, deck = stand_in
+    out = sw.run_point(deck, {"KP": "kill"}, tmp_path / "pt", command=command)
+    assert (out["status"], out["reason"]) == (-9, "killed by signal SIGKILL")
 
 
 # ---------------------------------------------------------------- local sweeps
