@@ -76,7 +76,7 @@ FOUND = Foundation([[-3.0, 0.1], [-1.0, 0.0], [0.5, 0.02], [1.5, -0.03], [3.0, -
 X0 = 2.0     # shift everything right in axisymmetry so that r > 0
 
 
-def _setup(nfn, gauss, ax, theta, substeps, case, form="d", hphi=0.0, law=None):
+def _setup(nfn, gauss, ax, theta, substeps, case, form="d", hphi=0.0, law=None, nlgeom=True):
     shift = np.array([X0 if ax else 0.0, 0.0])
     found = Foundation(FOUND.points + shift)
     if nfn == 3:
@@ -99,12 +99,12 @@ def _setup(nfn, gauss, ax, theta, substeps, case, form="d", hphi=0.0, law=None):
     if case == "open":
         u_old = u_old + [0, 0.2]
         u_new = u_new + [0, 0.2]
-    ctx = StepContext(foundation_old={"F": np.array([0.001, 0.0])},
+    ctx = StepContext(nlgeom=nlgeom, foundation_old={"F": np.array([0.001, 0.0])},
                       foundation_new={"F": np.array([0.002, -0.0005])})
     state = grp.init_state()
     if case != "open":
         # committed state: in contact with some friction already, consistent with the start position
-        _, _, pr = grp._penetration(grp._face_x(u_old), ctx.foundation_old["F"], 0.0)
+        _, _, pr = grp._penetration(grp._face_x(u_old), ctx.foundation_old["F"], 0.0, nlgeom)
         state["p"] = law.kp * np.maximum(pr.d, 0.0)
         state["tau"] = -0.5 * law.phi * state["p"]
         state["status"][:] = STICK
@@ -137,13 +137,17 @@ def _fd_tangent(grp, u_new, u_old, state, ctx, h=1e-7):
     return Kfd
 
 
-CASES = list(itertools.product((3, 2), (2, 3), (False, True), (0.0, 0.5, 1.0), (1, 3),
-                                ("open", "stick", "slip")))
+CASES = ([c + (True,) for c in itertools.product((3, 2), (2, 3), (False, True), (0.0, 0.5, 1.0),
+                                                 (1, 3), ("open", "stick", "slip"))]
+         + [c + (False,) for c in itertools.product((3, 2), (2, 3), (False, True), (0.5,), (1, 3),
+                                                    ("stick", "slip"))])
 
 
-@pytest.mark.parametrize("nfn,gauss,ax,theta,substeps,case", CASES)
-def test_tangent_matches_finite_differences(nfn, gauss, ax, theta, substeps, case):
-    grp, u_old, u_new, state, ctx = _setup(nfn, gauss, ax, theta, substeps, case)
+@pytest.mark.parametrize("nfn,gauss,ax,theta,substeps,case,nlgeom", CASES)
+def test_tangent_matches_finite_differences(nfn, gauss, ax, theta, substeps, case, nlgeom):
+    """NLGEOM: constitutive + geometric parts; small strain: the axes, Jacobian and radius are
+    those of the reference face (still non-symmetric through the friction law)."""
+    grp, u_old, u_new, state, ctx = _setup(nfn, gauss, ax, theta, substeps, case, nlgeom=nlgeom)
     res = grp.compute(u_new, u_old, state, ctx)
     assert res.failure is None
     want = {"open": OPEN, "stick": STICK, "slip": SLIP}[case]
@@ -194,7 +198,7 @@ def _flat_punch(nfn, ax, dy, slide=0.0, B=0.0, phi=0.3):
     grp = ContactGroup("c", np.arange(nfn)[None], [1], [1], coords0, found, "F", law,
                        gauss=3, axisymmetric=ax, thickness=2.0)
     u_new = np.tile([slide, -dy], (nfn, 1))
-    ctx = StepContext(foundation_old={"F": np.zeros(2)}, foundation_new={"F": np.zeros(2)})
+    ctx = StepContext(nlgeom=True, foundation_old={"F": np.zeros(2)}, foundation_new={"F": np.zeros(2)})
     return grp, u_new, ctx, law, x0
 
 
@@ -220,9 +224,34 @@ def test_flat_punch_pressure_and_forces(nfn, ax):
         share = [1 / 6, 1 / 6, 2 / 3] if nfn == 3 else [0.5, 0.5]
         assert np.allclose(fy, np.array(share) * total, rtol=1e-12)
     pts = grp.points(u_new, res.state, ctx)
-    assert pts.P == pytest.approx(-total / (1.0 if ax else 2.0), rel=1e-12)   # no thickness
+    assert pts.P == pytest.approx(-total, rel=1e-12)
+    assert pts.A == pytest.approx(-total / p, rel=1e-12)
+    assert np.allclose(pts.F, [0.0, -total], rtol=1e-12, atol=1e-12)
     assert np.allclose(pts.gap, dy)
     assert np.allclose(pts.x[:, 1], -dy)
+
+
+@pytest.mark.parametrize("nfn", (2, 3))
+@pytest.mark.parametrize("ax", (False, True))
+@pytest.mark.parametrize("nlgeom", (False, True))
+def test_stretched_punch_current_or_reference_face(nfn, ax, nlgeom):
+    """A face pressed by d and stretched by 10 % about x = 0: p = KP d either way; the normal
+    force is integrated on the stretched face with NLGEOM, on the reference face otherwise."""
+    dy, eps = 0.01, 0.1
+    grp, u_new, ctx, law, x0 = _flat_punch(nfn, ax, dy)
+    ctx.nlgeom = nlgeom
+    u_new = u_new + np.stack([eps * grp.coords0[:, 0], 0 * grp.coords0[:, 0]], axis=1)
+    res = grp.compute(u_new, np.zeros_like(u_new), grp.init_state(), ctx)
+    p = law.kp * dy
+    assert np.allclose(res.state["p"], p, rtol=1e-12)
+    k = 1 + eps if nlgeom else 1.0
+    if ax:
+        total = p * k * k * ((x0 + 2) ** 2 - x0 ** 2) / 2           # int p r dr on [k x0, k (x0+2)]
+    else:
+        total = p * k * 2.0 * 2.0
+    assert res.f[0, 1::2].sum() == pytest.approx(-total, rel=1e-12)
+    pts = grp.points(u_new, res.state, ctx)
+    assert pts.P == pytest.approx(total, rel=1e-12) and pts.F[1] == pytest.approx(total, rel=1e-12)
 
 
 def test_sliding_friction_force_opposes_motion():
@@ -242,13 +271,13 @@ def test_moving_foundation_relative_slip():
     """Moving the foundation with the body gives dv = 0 (no friction); moving the foundation
     alone by -x is the same relative slip as moving the body by +x."""
     grp, u_new, ctx, law, _ = _flat_punch(3, False, 0.01, slide=0.0)
-    ctx_move = StepContext(foundation_old={"F": np.zeros(2)}, foundation_new={"F": np.array([-2e-3, 0.0])})
+    ctx_move = StepContext(nlgeom=True, foundation_old={"F": np.zeros(2)}, foundation_new={"F": np.array([-2e-3, 0.0])})
     res_f = grp.compute(u_new, np.zeros_like(u_new), grp.init_state(), ctx_move)
     u_body = u_new + [2e-3, 0.0]
     res_b = grp.compute(u_body, np.zeros_like(u_new), grp.init_state(), ctx)
     assert np.allclose(res_f.state["tau"], res_b.state["tau"], rtol=1e-12)
     assert np.all(res_f.state["tau"] < 0)
-    ctx_both = StepContext(foundation_old={"F": np.zeros(2)}, foundation_new={"F": np.array([2e-3, 0.0])})
+    ctx_both = StepContext(nlgeom=True, foundation_old={"F": np.zeros(2)}, foundation_new={"F": np.array([2e-3, 0.0])})
     res_0 = grp.compute(u_body, np.zeros_like(u_new), grp.init_state(), ctx_both)
     assert np.allclose(res_0.state["tau"], 0.0, atol=1e-9)
 
@@ -326,10 +355,10 @@ def test_tangent_with_coulomb_hardening_one_substep(hphi, hb, case):
     _check_fd(*args, want={"stick": STICK, "slip": SLIP}[case])
 
 
-@pytest.mark.xfail(strict=True, reason="COULOMB reports no lam derivatives (tau_lam, lam_u, lam_d, "
-                   "lam_v, lam_tau, lam_lam): with hardening, lam of one sub-interval feeds the next")
-def test_tangent_with_coulomb_hardening_substeps():
-    law = _coulomb(0.5, 3, HPHI=2.0, HB=5.0)
+@pytest.mark.parametrize("hphi,hb", ((2.0, 5.0), (-0.4, -20.0)))
+def test_tangent_with_coulomb_hardening_substeps(hphi, hb):
+    """With hardening lam of one sub-interval feeds the next (tau_lam, lam_* chained)."""
+    law = _coulomb(0.5, 3, HPHI=hphi, HB=hb)
     args = _setup(3, 3, True, 0.5, 3, "slip", law=law)
     _check_fd(*args, want=SLIP)
 

@@ -32,6 +32,12 @@ with r the radius of P in the end configuration.  ``K = dF/du_new`` is exact: co
 part (p, tau through d and dv, chained through the sub-intervals in forward mode) plus the
 geometric part (moving face tangent/normal, moving point Q, moving radius).
 
+Small strain (``ctx.nlgeom`` False) is the geometrically linear version, consistent with the
+pressure loads of ``elements.edges``: the axes (e_u, e_v), the Jacobian |t| and the radius r
+are those of the *reference* face; d is still measured from the current point P (along the
+reference normal) to the foundation, and dv = e_v0 . (dP - dc).  Its tangent is the
+constitutive part only (through dd/dP), still non-symmetric through the friction law.
+
 Chaining the law's derivatives.  The law (``lagamine_py.laws.base.ContactLaw``) returns, per
 sub-interval, derivatives named ``<out>_<in>`` with ``out`` in ``p, tau, lam`` and ``in`` in
 ``u`` (du, with d moving with it), ``v`` (dv), ``d`` (d_{k-1} with du fixed, i.e. an explicit
@@ -130,6 +136,7 @@ class ContactGroup(Group):
         self._At = np.tile(At, (nf, 1, 1))
         self._Wg = np.tile(self.w, nf)                            # (g,)
         self._Ng = np.tile(self.N, (nf, 1))                       # (g, a)
+        self._P0, self._t0 = self._at_points(self.coords0[self.face_nodes])   # reference face
         try:
             sig = inspect.signature(law.update)
             self._law_frozen = ("frozen" in sig.parameters
@@ -161,18 +168,25 @@ class ContactGroup(Group):
             return np.asarray(fc[self.name])
         return None
 
-    def _penetration(self, x, c, scale):
+    def _axes_t(self, x, geo):
+        """P (g, 2) at positions x and the tangent t (g, 2) defining the axes: of x when
+        ``geo`` (NLGEOM), of the reference face otherwise."""
+        P, t = self._at_points(x)
+        return P, (t if geo else self._t0)
+
+    def _penetration(self, x, c, scale, geo):
         """d (g,) and D d / D u_new (g, nd) (zeros when ``scale`` is 0) for positions x
         (f, a, 2) that move with ``scale`` * u_new.  Points not found: d = 0, derivative 0."""
-        P, t = self._at_points(x)
+        P, t = self._axes_t(x, geo)
         e_u, de = _de_u_dt(t)
         pr = self.foundation.project(P, e_u, c)
         d = np.where(pr.found, pr.d, 0.0)
         if scale == 0.0:
             return d, np.zeros((self.ng, self.nd)), pr
-        dd_dt = np.einsum("gi,gij->gj", pr.dd_de, de)
-        Dd = scale * (np.einsum("gi,giJ->gJ", pr.dd_dP, self._AP)
-                      + np.einsum("gi,giJ->gJ", dd_dt, self._At))
+        Dd = scale * np.einsum("gi,giJ->gJ", pr.dd_dP, self._AP)
+        if geo:                                                   # the normal turns with the face
+            dd_dt = np.einsum("gi,gij->gj", pr.dd_de, de)
+            Dd += scale * np.einsum("gi,giJ->gJ", dd_dt, self._At)
         Dd[~pr.found] = 0.0
         return d, Dd, pr
 
@@ -191,8 +205,9 @@ class ContactGroup(Group):
         theta = float(getattr(self.law, "theta", 1.0))
         frozen = self._frozen(ctx)
         frozen_open = None if frozen is None else (frozen == OPEN)
+        geo = bool(ctx.nlgeom)
 
-        d_prev, Dd_prev, _ = self._penetration(xo, co, 0.0)       # start: fixed w.r.t. u_new
+        d_prev, Dd_prev, _ = self._penetration(xo, co, 0.0, geo)  # start: fixed w.r.t. u_new
         st = {k: np.array(v, copy=True) for k, v in state.items()}
         D = {k: np.zeros((self.ng, self.nd)) for k in _OUT}
         dc = (cn - co) / nsub
@@ -200,17 +215,18 @@ class ContactGroup(Group):
         for k in range(1, nsub + 1):
             a_k = k / nsub
             d_k, Dd_k, _ = self._penetration(xo + a_k * dx, co + a_k * (cn - co),
-                                             a_k if tangent else 0.0)
+                                             a_k if tangent else 0.0, geo)
             a_th = (k - 1 + theta) / nsub
-            _, t_th = self._at_points(xo + a_th * dx)
+            _, t_th = self._axes_t(xo + a_th * dx, geo)
             e_v, dev = _de_v_dt(t_th)
             rel = dP - dc
             dv = np.einsum("gi,gi->g", e_v, rel)
             du = d_k - d_prev
             new, tan = self._call_law(st, d_k, du, dv, frozen)
             if tangent:
-                Ddv = (a_th * np.einsum("gi,gij,gjJ->gJ", rel, dev, self._At)
-                       + np.einsum("gi,giJ->gJ", e_v, self._AP) / nsub)
+                Ddv = np.einsum("gi,giJ->gJ", e_v, self._AP) / nsub
+                if geo:
+                    Ddv += a_th * np.einsum("gi,gij,gjJ->gJ", rel, dev, self._At)
                 D = self._chain(tan, D, Dd_k - Dd_prev, Dd_prev, Ddv)
             if frozen_open is not None and frozen_open.any():
                 new = dict(new)
@@ -242,27 +258,27 @@ class ContactGroup(Group):
             out[o] = acc
         return out
 
-    def _weights(self, P, t):
+    def _weights(self, P, geo):
         """Integration weight per point without |t| (which sits in the force vectors):
-        W * thickness (PE) or W * r (AX); and its derivative (g, nd)."""
-        if self.axisymmetric:
-            wt = self._Wg * P[:, 0]
-            Dwt = self._Wg[:, None] * self._AP[:, 0, :]
-        else:
-            wt = self._Wg * self.thickness
-            Dwt = None
-        return wt, Dwt
+        W * thickness (PE) or W * r (AX, r of P when ``geo``, of the reference point
+        otherwise); and its derivative (g, nd) (None when constant)."""
+        if not self.axisymmetric:
+            return self._Wg * self.thickness, None
+        if not geo:
+            return self._Wg * self._P0[:, 0], None
+        return self._Wg * P[:, 0], self._Wg[:, None] * self._AP[:, 0, :]
 
     def compute(self, u_new, u_old, state, ctx: StepContext, tangent: bool = True) -> GroupResult:
         """Contact forces ``f`` (f, nd) and ``K = df/du_new`` (f, nd, nd); see the module doc."""
+        geo = bool(ctx.nlgeom)
         with np.errstate(invalid="ignore", divide="ignore"):
             st, D = self._integrate(u_new, u_old, state, ctx, tangent)
-        P, t = self._at_points(self._face_x(u_new))
+        P, t = self._axes_t(self._face_x(u_new), geo)
         jac = np.linalg.norm(t, axis=-1)
         p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
         Rt = t @ _R.T
         vec = p[:, None] * Rt - tau[:, None] * t                      # (p e_u + tau e_v) |t|
-        wt, Dwt = self._weights(P, t)
+        wt, Dwt = self._weights(P, geo)
         f = np.einsum("ga,gi,g->gai", self._Ng, vec, wt).reshape(self.nf, self.nq, self.nd).sum(axis=1)
         failure = None
         if np.any(jac <= 1e-14 * max(1.0, float(np.abs(self.coords0).max(initial=1.0)))):
@@ -271,9 +287,10 @@ class ContactGroup(Group):
             failure = f"contact {self.name}: non-finite contact stresses"
         K = None
         if tangent:
-            Dvec = (np.einsum("gi,gJ->giJ", Rt, D["p"]) - np.einsum("gi,gJ->giJ", t, D["tau"])
-                    + p[:, None, None] * np.einsum("ij,gjJ->giJ", _R, self._At)
-                    - tau[:, None, None] * self._At)
+            Dvec = np.einsum("gi,gJ->giJ", Rt, D["p"]) - np.einsum("gi,gJ->giJ", t, D["tau"])
+            if geo:                                   # the face (normal, length) moves
+                Dvec += (p[:, None, None] * np.einsum("ij,gjJ->giJ", _R, self._At)
+                         - tau[:, None, None] * self._At)
             Kg = np.einsum("ga,giJ,g->gaiJ", self._Ng, Dvec, wt)
             if Dwt is not None:
                 Kg = Kg + np.einsum("ga,gi,gJ->gaiJ", self._Ng, vec, Dwt)
@@ -282,24 +299,31 @@ class ContactGroup(Group):
 
     # ------------------------------------------------------------------ output
     def points(self, u_new, state, ctx: StepContext):
-        """Contact points for writers (:class:`lagamine_py.output.base.ContactPoints`):
-        current P, committed (p, tau, slip, lam, status), gap d at the end configuration
-        (NaN where the line misses the foundation), and totals ``P = int p dS``,
-        ``T = int tau dS`` in the current configuration (per unit thickness in plane strain,
-        per radian in axisymmetry)."""
+        """Contact points for writers (:class:`lagamine_py.output.base.ContactPoints`).
+
+        ``x`` current P; ``p``, ``tau``, ``slip``, ``lam``, ``status`` from ``state``; ``gap``
+        the signed distance d at the end configuration (NaN where the line misses the
+        foundation); totals over the surface the forces are integrated on (the current face
+        with NLGEOM, the reference face otherwise), ``dA = thickness ds`` (plane strain) or
+        ``r ds`` (axisymmetry, per radian): ``P = int p dA``, ``T = int tau dA``, ``A = int
+        dA`` over the points in contact (status not OPEN), and ``F`` (2,) the resultant force
+        of the foundation on the body, ``-sum f`` (sum of the nodal contact forces)."""
         from ..output.base import ContactPoints
+        geo = bool(ctx.nlgeom)
         c = self._translation(ctx, "new")
-        x = self._face_x(u_new)
-        P, t = self._at_points(x)
+        P, t = self._axes_t(self._face_x(u_new), geo)
         e_u, _ = _de_u_dt(t)
         pr = self.foundation.project(P, e_u, c)
-        dS = self._Wg * np.linalg.norm(t, axis=-1) * (P[:, 0] if self.axisymmetric else 1.0)
+        wt, _ = self._weights(P, geo)
+        dA = wt * np.linalg.norm(t, axis=-1)
         p = np.asarray(state["p"], float)
         tau = np.asarray(state["tau"], float)
+        status = np.asarray(state.get("status", np.zeros(self.ng)), np.int8)
+        vec = p[:, None] * (t @ _R.T) - tau[:, None] * t
+        F = -np.einsum("gi,g->i", vec, wt)                         # sum_a N_a = 1 on a face
         return ContactPoints(
             name=self.name, element=np.repeat(self.ids, self.nq), face=np.repeat(self.faces, self.nq),
             gauss=np.tile(np.arange(1, self.nq + 1), self.nf), x=P, p=p, tau=tau,
             gap=np.where(pr.found, pr.d, np.nan), slip=np.asarray(state.get("slip", np.zeros(self.ng)), float),
-            lam=np.asarray(state.get("lam", np.zeros(self.ng)), float),
-            status=np.asarray(state.get("status", np.zeros(self.ng)), np.int8),
-            P=float(np.sum(p * dS)), T=float(np.sum(tau * dS)))
+            lam=np.asarray(state.get("lam", np.zeros(self.ng)), float), status=status,
+            P=float(np.sum(p * dA)), T=float(np.sum(tau * dA)), A=float(np.sum(dA[status != OPEN])), F=F)
