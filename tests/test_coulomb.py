@@ -339,12 +339,51 @@ def test_tangent_matches_central_differences(extra):
     }
     for key, val in fd.items():
         np.testing.assert_allclose(tan[key], val, rtol=1e-5, atol=1e-5 * law.kt, err_msg=key)
+    # derivatives of lam_new (needed to chain sub-intervals with hardening), and d tau/d lam_old
+    lam_of = lambda **kw: tau_of(**kw)["lam"]  # noqa: E731
+    fd_lam = {
+        "lam_v": (lam_of(dv_=dv + h) - lam_of(dv_=dv - h)) / (2 * h),
+        "lam_tau": (lam_of(tau0=tau_old + 10 * h) - lam_of(tau0=tau_old - 10 * h)) / (20 * h),
+        "lam_d": (lam_of(d_=d + h) - lam_of(d_=d - h)) / (2 * h),
+        "lam_du": (lam_of(du_=du + h) - lam_of(du_=du - h)) / (2 * h),
+    }
+    for key, val in fd_lam.items():
+        np.testing.assert_allclose(tan[key], val, rtol=1e-5, atol=1e-6, err_msg=key)
+    hl = 1e-6
+    up = law.update(_make_state(law, p_old, tau_old, lam_old + hl), d, du, dv)[0]
+    dn = law.update(_make_state(law, p_old, tau_old, lam_old - hl), d, du, dv)[0]
+    np.testing.assert_allclose(tan["tau_lam"], (up["tau"] - dn["tau"]) / (2 * hl), rtol=1e-5,
+                               atol=1e-5 * law.kt, err_msg="tau_lam")
+    np.testing.assert_allclose(tan["lam_lam"], (up["lam"] - dn["lam"]) / (2 * hl), rtol=1e-5,
+                               atol=1e-6, err_msg="lam_lam")
     # plastic points with phi, B constant follow eq. (11): no dependence on dv or tau_old
     if not extra:
         slip = new["status"] == SLIP
         np.testing.assert_allclose(tan["tau_v"][slip], 0.0, atol=1e-12)
         np.testing.assert_allclose(tan["tau_u"][slip & (p_old > 0)],
                                    0.3 * 1000.0 * np.sign(new["tau"][slip & (p_old > 0)]))
+
+
+@pytest.mark.parametrize("case", sorted(HARDENING_CASES))
+@pytest.mark.parametrize("n", [1, 4])
+def test_tangent_chained_over_substeps_matches_differences(case, n):
+    """The (tau, lam) chain over SUBSTEPS sub-intervals gives the exact derivative of the
+    interval's end tau w.r.t. its increments (differences of whole driver runs)."""
+    law = Coulomb(**HARDENING_CASES[case])
+    # path points chosen away from kinks (yield, clipping, separation) at the perturbed ends
+    res = drive(law, U_PATH, V_PATH, substeps=n, tangent=True)
+    h = 1e-8
+    for i in range(1, len(U_PATH)):
+        for key, path, other in (("dtau_du", U_PATH, V_PATH), ("dtau_dv", V_PATH, U_PATH)):
+            plus, minus = path[: i + 1].copy(), path[: i + 1].copy()
+            plus[i] += h
+            minus[i] -= h
+            args = (plus, other[: i + 1]) if key == "dtau_du" else (other[: i + 1], plus)
+            margs = (minus, other[: i + 1]) if key == "dtau_du" else (other[: i + 1], minus)
+            fd = (drive(law, *args, substeps=n)["tau"][-1]
+                  - drive(law, *margs, substeps=n)["tau"][-1]) / (2 * h)
+            np.testing.assert_allclose(res[key][i], fd, rtol=1e-5, atol=1e-3,
+                                       err_msg=f"{key} at path point {i}")
 
 
 def test_snap_back_softening_is_refused_at_runtime():

@@ -16,7 +16,8 @@ __all__ = ["drive"]
 _FIELDS = ("p", "tau", "lam", "slip", "dissip", "status")
 
 
-def drive(law: ContactLaw, u_path, v_path, substeps: int | None = None) -> dict[str, np.ndarray]:
+def drive(law: ContactLaw, u_path, v_path, substeps: int | None = None,
+          tangent: bool = False) -> dict[str, np.ndarray]:
     """Drive ``law`` along a piecewise-linear path, splitting each interval in sub-intervals.
 
     Parameters
@@ -27,6 +28,11 @@ def drive(law: ContactLaw, u_path, v_path, substeps: int | None = None) -> dict[
         unloaded (``tau = 0``) at ``u_path[0]``.
     substeps : int, optional
         Sub-intervals per path interval; default ``law.substeps``.
+    tangent : bool
+        Also return ``dtau_du``, ``dtau_dv``: the derivative of ``tau`` at each path point with
+        respect to the increments ``u[i+1] - u[i]``, ``v[i+1] - v[i]`` of the interval ending
+        there (state at its start held), chained through the sub-intervals with the law's
+        ``tau_*`` and ``lam_*`` derivatives -- what a contact element does with SUBSTEPS > 1.
 
     Returns
     -------
@@ -44,14 +50,27 @@ def drive(law: ContactLaw, u_path, v_path, substeps: int | None = None) -> dict[
     state = law.init_state(g)
     state, _ = law.update(state, u[0], u[0], np.zeros(g))  # load the normal part, tau = 0
     out = {k: [np.array(state[k], copy=True)] for k in _FIELDS}
+    jac = {"dtau_du": [np.zeros(g)], "dtau_dv": [np.zeros(g)]}
     for i in range(len(u) - 1):                            # time loop, batched over points
         du = (u[i + 1] - u[i]) / n
         dv = (v[i + 1] - v[i]) / n
+        # (d tau, d lam) / (d Du, d Dv) of the interval, chained over its sub-intervals
+        j_tau, j_lam = np.zeros((2, g)), np.zeros((2, g))
         for k in range(1, n + 1):
             d = u[i + 1] if k == n else u[i] + k * du
-            state, _ = law.update(state, d, du, dv)
+            state, tan = law.update(state, d, du, dv)
+            if tangent:
+                # d_k = u_i + k Du/n, du_k = Du/n, dv_k = Dv/n
+                direct_tau = np.stack([tan["tau_d"] * k / n + tan["tau_du"] / n, tan["tau_v"] / n])
+                direct_lam = np.stack([tan["lam_d"] * k / n + tan["lam_du"] / n, tan["lam_v"] / n])
+                j_tau, j_lam = (tan["tau_tau"] * j_tau + tan["tau_lam"] * j_lam + direct_tau,
+                                tan["lam_tau"] * j_tau + tan["lam_lam"] * j_lam + direct_lam)
         for key in _FIELDS:
             out[key].append(np.array(state[key], copy=True))
+        jac["dtau_du"].append(j_tau[0])
+        jac["dtau_dv"].append(j_tau[1])
+    if tangent:
+        out.update(jac)
     res = {k: np.stack(vals) for k, vals in out.items()}
     res["u"], res["v"] = u.copy(), v.copy()
     if single:

@@ -143,9 +143,19 @@ class Coulomb(ContactLaw):
     def update(self, state, d, du, dv):
         """Integrate one sub-interval for all points (see :class:`ContactLaw`).
 
-        Returns ``(new_state, tan)``; besides ``p_u``, ``tau_u``, ``tau_v``, ``tau_tau`` the
-        tangent holds ``p_d``, ``tau_d`` (d/dd at fixed du) and ``tau_du`` (d/ddu at fixed d),
-        ``tau_u = tau_d + tau_du``, for elements whose ``d`` and ``du`` vary independently.
+        Returns ``(new_state, tan)``.  Besides ``p_u``, ``tau_u``, ``tau_v``, ``tau_tau`` the
+        tangent holds (all (g,)):
+
+        * ``p_d``, ``tau_d`` (d/dd at fixed du) and ``tau_du`` (d/ddu at fixed d), with
+          ``tau_u = tau_d + tau_du``, for elements whose ``d`` and ``du`` vary independently;
+        * ``tau_lam`` = d tau_new/d lam_old and ``lam_d``, ``lam_du``, ``lam_u``, ``lam_v``,
+          ``lam_tau``, ``lam_lam`` (derivatives of lam_new): with hardening, chaining
+          sub-intervals exactly needs the pair (tau, lam)::
+
+              J_tau <- tau_tau J_tau + tau_lam J_lam + tau_d dd + tau_du ddu + tau_v ddv
+              J_lam <- lam_tau J_tau + lam_lam J_lam + lam_d dd + lam_du ddu + lam_v ddv
+
+          (``contact_point.drive(..., tangent=True)`` does exactly this).
         """
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             # masked formulas are evaluated everywhere by np.where; unused lanes may overflow
@@ -187,7 +197,7 @@ class Coulomb(ContactLaw):
             p=p1, tau=tau1, lam=lam0 + dlam, slip=np.asarray(state["slip"], float) + np.abs(dlam),
             dissip=np.asarray(state["dissip"], float) + ddis,
             status=np.where(~contact, OPEN, np.where(plastic, SLIP, STICK)).astype(np.int8))
-        tan = self._tangent(contact, plastic, recon, partial, d, safe_du, dv, frac, sig, dmat,
+        tan = self._tangent(contact, sep, plastic, recon, partial, d, du, dv, frac, sig, dmat,
                             hmat, phi1)
         return new_state, tan
 
@@ -268,19 +278,38 @@ class Coulomb(ContactLaw):
         piece = np.einsum("...pk,k->...p", abs_tau, _GL_W) * 0.5 * (c - a)
         return np.where(act, np.sign(dlam) * piece.sum(axis=-1), 0.0)
 
-    def _tangent(self, contact, plastic, recon, partial, d, safe_du, dv, frac, sig, dmat,
-                 hmat, phi1):
-        """Exact derivatives of the sub-interval map, zero where open."""
+    def _tangent(self, contact, sep, plastic, recon, partial, d, du, dv, frac, sig, dmat, hmat,
+                 phi1):
+        """Exact derivatives of ``tau_new`` and ``lam_new`` (zero ``tau`` derivatives where open).
+
+        The map is ``tau_tr = tau0 + KT dv frac`` and ``p1 = KP max(d, 0)`` followed by the
+        return; on the final piece of the return ``D = KT + H``::
+
+            d lam1 = (sgn d tau_tr - phi1 d p1 + KT d lam0) / D
+            d tau1 = d tau_tr - sgn KT (d lam1 - d lam0)
+        """
         kp, kt = self.kp, self.kt
-        dtau_dtr = np.where(plastic, hmat / dmat, 1.0)
-        dtau_dp1 = np.where(plastic, sig * kt * phi1 / dmat, 0.0)
-        # tau_tr = tau0 + KT dv frac, frac = d/du on a partial re-contact
-        dtr_dd = np.where(partial, kt * dv / safe_du, 0.0)
-        dtr_ddu = np.where(partial, -kt * dv * frac / safe_du, 0.0)
         c = contact.astype(float)
-        p_d = kp * c
-        tau_d = c * (dtau_dp1 * kp + dtau_dtr * dtr_dd)
-        tau_du = c * dtau_dtr * dtr_ddu
-        return {"p_u": p_d, "p_d": p_d.copy(), "tau_u": tau_d + tau_du, "tau_d": tau_d,
-                "tau_du": tau_du, "tau_v": c * dtau_dtr * kt * frac,
-                "tau_tau": c * np.where(recon, 0.0, dtau_dtr)}
+        active = (contact | sep).astype(float)
+        safe_du = np.where(partial | sep, du, 1.0)
+        # frac = d/du on a partial re-contact, d_old/(d_old - d) = 1 - d/du on a separation
+        frac_d = np.where(partial, 1.0 / safe_du, np.where(sep, -1.0 / safe_du, 0.0))
+        frac_du = np.where(partial, -frac / safe_du, np.where(sep, (1.0 - frac) / safe_du, 0.0))
+        dtr = {"d": kt * dv * frac_d, "du": kt * dv * frac_du, "v": kt * frac,
+               "tau": np.where(recon, 0.0, 1.0)}
+        dp1 = {"d": kp * c, "du": 0.0, "v": 0.0, "tau": 0.0}
+        lam_tr = np.where(plastic, sig / dmat, 0.0)
+        lam_p1 = np.where(plastic, -phi1 / dmat, 0.0)
+        lam_lam = np.where(plastic, kt / dmat, 1.0)
+        tan = {}
+        for x in ("d", "du", "v", "tau"):
+            lam_x = active * (lam_tr * dtr[x] + lam_p1 * dp1[x])
+            tan["lam_" + x] = lam_x
+            tan["tau_" + x] = c * (dtr[x] - sig * kt * lam_x)
+        tan["lam_lam"] = lam_lam
+        tan["tau_lam"] = c * np.where(plastic, -sig * kt * (lam_lam - 1.0), 0.0)
+        tan["p_d"] = kp * c
+        tan["p_u"] = tan["p_d"].copy()
+        tan["tau_u"] = tan["tau_d"] + tan["tau_du"]
+        tan["lam_u"] = tan["lam_d"] + tan["lam_du"]
+        return tan
