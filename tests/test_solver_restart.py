@@ -79,3 +79,37 @@ def test_restart_reaches_the_uninterrupted_result(tmp_path, stop_at, exc):
 def test_no_restart_data(tmp_path):
     assert restart_deck(tmp_path) is None
     assert not (tmp_path / FILE).exists()
+
+
+def test_cli_restart_of_a_deck_rewrites_nothing_twice(tmp_path):
+    """Whole program: press_slide.dat interrupted in its second step, resumed with
+    ``lagamine-py run --restart OUT``: the tables equal those of an uninterrupted run."""
+    from pathlib import Path
+
+    from lagamine_py.cli import main
+    from lagamine_py.deck import load_deck
+    from lagamine_py.output import default_writers
+    from lagamine_py.results import read_table
+
+    deck = Path(__file__).resolve().parents[1] / "decks" / "press_slide.dat"
+    full, cut = tmp_path / "full", tmp_path / "cut"
+    assert main(["run", str(deck), "-o", str(full), "-q"]) == 0
+
+    class Stop(Recorder):
+        def increment(self, result):
+            if (result.step, result.increment) == (2, 3):
+                raise KeyboardInterrupt
+
+    model = load_deck(deck)
+    with pytest.raises(KeyboardInterrupt):
+        run(model, cut, writers=default_writers(cut, model) + [Stop()], deck_path=deck)
+    assert main(["run", "--restart", str(cut), "-q"]) == 0
+    for name in ("contact.csv", "reactions.csv", "displacements.csv", "contact_totals.csv"):
+        a, b = read_table(full / name), read_table(cut / name)
+        assert a.keys() == b.keys()
+        for col in a:
+            assert len(a[col]) == len(b[col]), (name, col)
+            if a[col].dtype == object:
+                assert list(a[col]) == list(b[col]), (name, col)
+            else:
+                np.testing.assert_allclose(b[col], a[col], rtol=1e-10, atol=1e-12, err_msg=f"{name}:{col}")

@@ -268,3 +268,27 @@ def test_body_resting_on_an_open_support_is_stabilised(tmp_path):
     # the same model without contact groups stops at once, naming the floating DOFs
     out, rec = solve(tmp_path, model, groups, kinds=["spring", "spring", "spring"])
     assert out.status == 3 and "node 10 y" in out.message
+
+
+def test_unavailable_solver_or_bad_control_is_a_clear_setup_error(tmp_path):
+    from lagamine_py.solver.linear import pardiso_available
+    model = make_model(1, [step("S", cloads=[cload(0, 1, 1.0)], controls={"MAXIT": 0})])
+    out, rec = solve(tmp_path, model, grounded([1.0]))
+    assert out.status == 1 and "MAXIT" in out.message and "(S)" in out.message
+    assert rec.closed == (1, out.message)
+    if not pardiso_available():
+        model.steps[0].controls = {"SOLVER": "PARDISO"}
+        out, rec = solve(tmp_path, model, grounded([1.0]))
+        assert out.status == 1 and "pypardiso" in out.message
+
+
+def test_progress_plain_lines_when_not_a_tty(tmp_path):
+    import io
+
+    from lagamine_py.solver.steps import Progress
+    stream = io.StringIO()
+    prog = Progress(enabled=True, stream=stream)
+    prog.update(0, step("LOAD"), 0.5, 1.0, 3, 2, 2)
+    prog.end()
+    assert stream.getvalue().startswith("step 1/2 LOAD: t 0.5/1  inc 3  it 2")
+    assert stream.getvalue().count("\n") == 1 and "\r" not in stream.getvalue()

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..elements.base import StepContext
 from ..output.base import IncrementResult
-from ..registry import validate_params
+from ..registry import ParamError, validate_params
 from . import restart as rs
 from .controls import CONTROL_PARAMS
 from .linear import FreeDofs, SingularMatrixError, make_solver
@@ -44,7 +44,11 @@ class Outcome:
 
 
 class StepFailed(Exception):
-    """A step cannot go on (cut-backs exhausted, INC= exceeded, singular matrix)."""
+    """A step cannot go on (cut-backs exhausted, INC= exceeded, singular matrix): status 3."""
+
+
+class SetupError(Exception):
+    """A step cannot start (e.g. its *CONTROLS ask for a solver that is not installed): status 1."""
 
 
 class _Controls:
@@ -110,6 +114,9 @@ class Controller:
         except StepFailed as exc:
             status, message = EXIT_DIVERGED, str(exc)
             log.error(message)
+        except SetupError as exc:
+            status, message = EXIT_OTHER, str(exc)
+            log.error(message)
         finally:
             self.progress.end()
             for w in self.writers:
@@ -118,9 +125,17 @@ class Controller:
 
     def _run_step(self, si: int, resume: dict | None) -> None:
         model, step = self.model, self.model.steps[si]
-        controls = step_controls(step)
+        try:
+            controls = step_controls(step)
+        except ParamError as exc:
+            raise SetupError(f"step {si + 1} ({step.name}): *CONTROLS: {exc}") from None
         settings = Settings.from_controls(controls)
-        solver = make_solver(controls["SOLVER"])
+        try:
+            solver = make_solver(controls["SOLVER"])
+        except KeyError as exc:
+            hint = " (SOLVER=PARDISO needs the optional package pypardiso)" \
+                if controls["SOLVER"] == "PARDISO" else ""
+            raise SetupError(f"step {si + 1} ({step.name}): {exc.args[0]}{hint}") from None
         T = float(step.period)
         if resume is not None:
             loads, t, dt, inc = resume["loads"], resume["t"], resume["dt"], resume["inc"]
