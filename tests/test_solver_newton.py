@@ -129,3 +129,24 @@ def test_trial_state_not_committed_and_returned():
     # plastic elongation: d - f/k with f = fy + H k/(k+H) (d - fy/k)
     f = 1.0 + 10 * 5 / 15 * (0.4 - 0.1)
     assert conv.states[0]["dp"][0] == pytest.approx(0.4 - f / 10.0, rel=1e-12)
+
+
+def test_flip_flopping_contact_points_are_frozen():
+    """A point whose status switched FLIPFLOP times is held (ctx.freeze_contact[name]); the
+    others stay free (-1); solid groups are not watched."""
+    from types import SimpleNamespace
+
+    from lagamine_py.solver.newton import _FlipFlop
+    problem = SimpleNamespace(group_names=["solid", "BOTTOM->FLAT"], kinds=["solid", "contact"])
+    ff = _FlipFlop(problem, limit=3)
+    ctx = StepContext()
+    seen = []
+    for it in range(5):
+        st = np.array([it % 2, 1], np.int8)           # point 0 chatters, point 1 sticks
+        out = ff.context(ctx, [{"status": np.array([it % 2])}, {"status": st}])
+        seen.append(out.freeze_contact)
+    assert seen[:3] == [None, None, None]             # 0, 1, 2 switches
+    assert set(seen[3]) == {"BOTTOM->FLAT"}
+    assert seen[3]["BOTTOM->FLAT"].tolist() == [1, -1]
+    assert seen[4]["BOTTOM->FLAT"].tolist() == [1, -1]   # frozen at the status it had
+    assert ctx.freeze_contact is None                 # the caller's context is not modified

@@ -88,6 +88,8 @@ class Converged:
     residual: float                # final relative force residual
     scale: float                   # force scale used by the test
     history: list[float] = field(default_factory=list)
+    f_ext: np.ndarray | None = None  # set by the step controller: loads of the increment
+    ctx: Any = None                  # and its StepContext
 
 
 def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict], ctx,
@@ -239,12 +241,16 @@ class _FlipFlop:
     def __init__(self, problem, limit: int):
         self.limit = limit
         self.names = getattr(problem, "group_names", None)
+        kinds = getattr(problem, "kinds", None)
+        self.watched = None if kinds is None else {k for k, kd in enumerate(kinds) if kd == "contact"}
         self.last: dict[int, np.ndarray] = {}
         self.count: dict[int, np.ndarray] = {}
         self.frozen: dict[int, np.ndarray] = {}
 
     def context(self, ctx, states):
         for k, st in enumerate(states):
+            if self.watched is not None and k not in self.watched:
+                continue
             status = st.get("status") if isinstance(st, dict) else None
             if status is None:
                 continue

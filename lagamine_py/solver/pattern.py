@@ -3,12 +3,13 @@
 The foundation is rigid, so every group couples only its own DOFs and the pattern never changes
 during a run.  :class:`Pattern` builds the CSR structure (sorted column indices, no duplicates)
 from the groups' ``dofs`` once and keeps, per group, the position in the CSR ``data`` array of
-every entry of its (e, nd, nd) blocks.  An iteration then only scatter-adds the block values into
-``data`` with ``np.bincount`` and the same for the (e, nd) force blocks into the residual vector.
+every entry of its (e, nd, nd) blocks.  An iteration then only zeroes ``data`` and scatter-adds
+the block values into it at the cached positions; the same for the (e, nd) force blocks into
+the residual vector.
 
-Measured on 20 000 Q8 blocks (numpy 2.4): ``np.bincount`` on the cached positions 11 ms,
-``np.add.at`` 9 ms, both far below a COO -> CSR rebuild; bincount is kept because it allocates
-its output and needs no zeroing pass.
+Measured (numpy 2.4, scipy 1.17) on 22 500 Q8 blocks (181k DOFs, 4.2M non-zeros), per assembly:
+``np.add.at`` on the cached positions 17 ms, ``np.bincount`` 24 ms, a COO -> CSR rebuild 180 ms.
+``np.add.at`` is used (it was the slow one before numpy 1.25).
 """
 from __future__ import annotations
 
@@ -59,7 +60,7 @@ class Pattern:
         data = np.zeros(self.nnz)
         for pos, K in zip(self.positions, blocks):
             if K is not None and pos.size:
-                data += np.bincount(pos, weights=np.asarray(K, float).ravel(), minlength=self.nnz)
+                np.add.at(data, pos, np.asarray(K, float).ravel())
         return data
 
     def assemble_vector(self, forces: list[np.ndarray | None]) -> np.ndarray:
@@ -67,14 +68,14 @@ class Pattern:
         out = np.zeros(self.ndof)
         for dofs, f in zip(self.dofs, forces):
             if f is not None and dofs.size:
-                out += np.bincount(dofs.ravel(), weights=np.asarray(f, float).ravel(),
-                                   minlength=self.ndof)
+                np.add.at(out, dofs.ravel(), np.asarray(f, float).ravel())
         return out
 
     def group_vector(self, k: int, f: np.ndarray) -> np.ndarray:
         """Global (ndof,) vector of group ``k``'s (e, nd) force blocks alone."""
-        return np.bincount(self.dofs[k].ravel(), weights=np.asarray(f, float).ravel(),
-                           minlength=self.ndof)
+        out = np.zeros(self.ndof)
+        np.add.at(out, self.dofs[k].ravel(), np.asarray(f, float).ravel())
+        return out
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """A CSR matrix sharing ``data`` and the cached structure (no copy, no re-sorting)."""

@@ -137,6 +137,8 @@ class Controller:
                 if controls["SOLVER"] == "PARDISO" else ""
             raise SetupError(f"step {si + 1} ({step.name}): {exc.args[0]}{hint}") from None
         T = float(step.period)
+        if not T > 0:
+            raise SetupError(f"step {si + 1} ({step.name}): the step time must be positive, got {T:g}")
         if resume is not None:
             loads, t, dt, inc = resume["loads"], resume["t"], resume["dt"], resume["inc"]
         else:
