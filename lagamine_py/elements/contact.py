@@ -235,7 +235,8 @@ class ContactGroup(Group):
                 for key in ("lam", "slip", "dissip"):
                     if key in new and key in st:
                         new[key] = np.where(frozen_open, st[key], new[key])
-                new["status"] = np.where(frozen_open, OPEN, new["status"]).astype(np.asarray(new["status"]).dtype)
+                status = np.asarray(new["status"])
+                new["status"] = np.where(frozen_open, OPEN, status).astype(status.dtype)
                 for key in _OUT:
                     D[key][frozen_open] = 0.0
             st = new
@@ -279,7 +280,8 @@ class ContactGroup(Group):
         Rt = t @ _R.T
         vec = p[:, None] * Rt - tau[:, None] * t                      # (p e_u + tau e_v) |t|
         wt, Dwt = self._weights(P, geo)
-        f = np.einsum("ga,gi,g->gai", self._Ng, vec, wt).reshape(self.nf, self.nq, self.nd).sum(axis=1)
+        f = np.einsum("ga,gi,g->gai", self._Ng, vec, wt)
+        f = f.reshape(self.nf, self.nq, self.nd).sum(axis=1)
         failure = None
         if np.any(jac <= 1e-14 * max(1.0, float(np.abs(self.coords0).max(initial=1.0)))):
             failure = f"contact {self.name}: degenerate face (zero Jacobian)"
@@ -321,9 +323,12 @@ class ContactGroup(Group):
         status = np.asarray(state.get("status", np.zeros(self.ng)), np.int8)
         vec = p[:, None] * (t @ _R.T) - tau[:, None] * t
         F = -np.einsum("gi,g->i", vec, wt)                         # sum_a N_a = 1 on a face
+        zero = np.zeros(self.ng)
         return ContactPoints(
-            name=self.name, element=np.repeat(self.ids, self.nq), face=np.repeat(self.faces, self.nq),
-            gauss=np.tile(np.arange(1, self.nq + 1), self.nf), x=P, p=p, tau=tau,
-            gap=np.where(pr.found, pr.d, np.nan), slip=np.asarray(state.get("slip", np.zeros(self.ng)), float),
-            lam=np.asarray(state.get("lam", np.zeros(self.ng)), float), status=status,
-            P=float(np.sum(p * dA)), T=float(np.sum(tau * dA)), A=float(np.sum(dA[status != OPEN])), F=F)
+            name=self.name, element=np.repeat(self.ids, self.nq),
+            face=np.repeat(self.faces, self.nq), gauss=np.tile(np.arange(1, self.nq + 1), self.nf),
+            x=P, p=p, tau=tau, gap=np.where(pr.found, pr.d, np.nan),
+            slip=np.asarray(state.get("slip", zero), float),
+            lam=np.asarray(state.get("lam", zero), float), status=status,
+            P=float(np.sum(p * dA)), T=float(np.sum(tau * dA)),
+            A=float(np.sum(dA[status != OPEN])), F=F)
