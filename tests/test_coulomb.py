@@ -386,6 +386,47 @@ def test_tangent_chained_over_substeps_matches_differences(case, n):
                                        err_msg=f"{key} at path point {i}")
 
 
+def test_frozen_status_is_held_and_its_tangent_is_exact():
+    """The solver's flip-flop control: -1 free; OPEN/STICK/SLIP held."""
+    law = Coulomb(**dict(BASE, HPHI=5.0, HB=20.0))
+    p_old, tau_old, d, du, dv = _states()
+    lam_old = np.full(p_old.size, 0.01)
+    radius = law.adhesion(lam_old)[0] + law.friction(lam_old)[0] * p_old
+    tau_old = np.where(np.abs(tau_old) == 4.0, np.sign(tau_old) * radius, tau_old)
+    st = _make_state(law, p_old, tau_old, lam_old)
+    free, tan_free = law.update(st, d, du, dv)
+    same, tan_same = law.update(st, d, du, dv, frozen=np.full(p_old.size, -1, np.int8))
+    for k in free:
+        np.testing.assert_array_equal(same[k], free[k])
+    for k in tan_free:
+        np.testing.assert_array_equal(tan_same[k], tan_free[k])
+    # swap stick and slip where in contact, hold the open point in contact open, and vice versa
+    swapped = np.where(free["status"] == SLIP, STICK, SLIP).astype(np.int8)
+    swapped[5] = -1
+    swapped[0] = OPEN
+    new, tan = law.update(st, d, du, dv, frozen=swapped)
+    assert list(new["status"]) == [OPEN] + list(swapped[1:5]) + [OPEN] + list(swapped[6:])
+    assert new["p"][0] == 0 and new["tau"][0] == 0 and new["lam"][0] == lam_old[0]
+    stick = new["status"] == STICK                       # held elastic: trial stress, even outside
+    frac = np.where(p_old == 0, d / np.where(p_old == 0, du, 1.0), 1.0)  # dv after touching
+    np.testing.assert_allclose(new["tau"][stick], (tau_old + law.kt * dv * frac)[stick],
+                               rtol=1e-14)
+    assert np.any(np.abs(new["tau"][stick]) > (law.adhesion(new["lam"])[0]
+                                                + law.friction(new["lam"])[0] * new["p"])[stick])
+    slip = new["status"] == SLIP                         # held on the cone, even when unloading
+    np.testing.assert_allclose(np.abs(new["tau"][slip]), (law.adhesion(new["lam"])[0]
+                               + law.friction(new["lam"])[0] * new["p"])[slip], rtol=1e-12)
+    h = 1e-7
+    for key, kw in (("tau_v", "dv"), ("tau_d", "d"), ("tau_du", "du")):
+        args_p = dict(d=d, du=du, dv=dv)
+        args_m = dict(d=d, du=du, dv=dv)
+        args_p[kw] = args_p[kw] + h
+        args_m[kw] = args_m[kw] - h
+        fd = (law.update(st, **args_p, frozen=swapped)[0]["tau"]
+              - law.update(st, **args_m, frozen=swapped)[0]["tau"]) / (2 * h)
+        np.testing.assert_allclose(tan[key], fd, rtol=1e-5, atol=1e-5 * law.kt, err_msg=key)
+
+
 def test_snap_back_softening_is_refused_at_runtime():
     law = Coulomb(KP=1000.0, KT=10.0, PHI=0.3, HPHI=-5.0)   # KT + HPHI p < 0 when p > 2
     st = _make_state(law, np.array([10.0]), np.array([3.0]), np.array([0.0]))

@@ -140,8 +140,12 @@ class Coulomb(ContactLaw):
         return _clipped_linear(self.phi, self.hphi, np.asarray(lam, float))
 
     # -- one sub-interval ----------------------------------------------------------------
-    def update(self, state, d, du, dv):
+    def update(self, state, d, du, dv, frozen=None):
         """Integrate one sub-interval for all points (see :class:`ContactLaw`).
+
+        ``frozen`` (optional, (g,) int): the Newton solver's flip-flop control; -1 leaves a
+        point free, OPEN/STICK/SLIP hold that status (STICK: elastic even outside the cone;
+        SLIP: returned to the cone even when unloading; OPEN: no contact, history kept).
 
         Returns ``(new_state, tan)``.  Besides ``p_u``, ``tau_u``, ``tau_v``, ``tau_tau`` the
         tangent holds (all (g,)):
@@ -159,21 +163,22 @@ class Coulomb(ContactLaw):
         """
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             # masked formulas are evaluated everywhere by np.where; unused lanes may overflow
-            return self._update(state, d, du, dv)
+            return self._update(state, d, du, dv, frozen)
 
-    def _update(self, state, d, du, dv):
+    def _update(self, state, d, du, dv, frozen):
         p_old = np.asarray(state["p"], float)
         d, du, dv = (np.broadcast_to(np.asarray(x, float), p_old.shape) for x in (d, du, dv))
         kp, kt = self.kp, self.kt
-        contact = d > 0.0
-        p1 = kp * np.maximum(d, 0.0)
+        hold = np.full(p_old.shape, -1) if frozen is None else np.broadcast_to(frozen, p_old.shape)
+        contact = (d > 0.0) & (hold != OPEN)
+        p1 = np.where(contact, kp * np.maximum(d, 0.0), 0.0)
 
         # the in-contact part of the sub-interval: re-contact starts from p = tau = 0 with the
         # part of dv after touching; separation integrates the slip up to the moment p = 0
         d_old = d - du
         recon = contact & (p_old <= 0.0)
         partial = recon & (d <= du)
-        sep = ~contact & (p_old > 0.0) & (d_old > 0.0)
+        sep = ~contact & (p_old > 0.0) & (d_old > 0.0) & (d <= 0.0) & (hold != OPEN)
         safe_du = np.where(partial, du, 1.0)
         frac = np.where(partial, d / safe_du, 1.0)
         frac = np.where(sep, d_old / np.where(sep, d_old - d, 1.0), frac)
@@ -185,10 +190,11 @@ class Coulomb(ContactLaw):
         tau_tr = tau0 + kt * dv_c
 
         plastic, sig = self._loading(tau0, p0, p1, lam0, dv_c, tau_tr, active)
+        plastic = np.where(hold == STICK, False, np.where(hold == SLIP, contact, plastic))
         lam1, dmat, hmat, phi1 = self._return(np.abs(tau_tr), p1, lam0, plastic)
         dlam = np.where(plastic, lam1 - lam0, 0.0)
-        if self.indicator == "PREDICTOR":
-            dlam = np.maximum(dlam, 0.0)  # roundoff guard at neutral loading
+        if self.indicator == "PREDICTOR":     # roundoff guard at neutral loading
+            dlam = np.where(hold == SLIP, dlam, np.maximum(dlam, 0.0))
         tau1 = np.where(contact, tau_tr - sig * kt * dlam, 0.0)
         ddis = self._dissipation(tau0, p0, p1 - p0, dv_c, lam0, dlam, sig, plastic)
 
