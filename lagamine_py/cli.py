@@ -29,9 +29,13 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--solver", choices=("AUTO", "SPLU", "PARDISO"),
                      help="sparse linear solver (overrides the deck's *CONTROLS SOLVER)")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                     help="override a *PARAMETER value of the deck (repeatable)")
 
     chk = sub.add_parser("check", help="parse and validate a deck without running it")
     chk.add_argument("deck", type=Path)
+    chk.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                     help="override a *PARAMETER value of the deck (repeatable)")
 
     sub.add_parser("plugins", help="list installed elements, laws, contact laws, writers and solvers "
                    "with their parameters")
@@ -66,18 +70,31 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_OTHER
 
 
-def _load(deck: Path):
+def _parameters(items: list[str]) -> dict[str, str] | None:
+    out = {}
+    for item in items:
+        name, eq, value = item.partition("=")
+        if not eq or not name.strip():
+            raise ValueError(f"--param {item!r}: expected NAME=VALUE")
+        out[name.strip()] = value.strip()
+    return out
+
+
+def _load(deck: Path, params: list[str] = ()):
     """Load a deck; on a deck error print it and return None."""
     from .deck import DeckError, load_deck
     try:
-        return load_deck(deck)
+        return load_deck(deck, parameters=_parameters(list(params)) or None)
+    except ValueError as exc:
+        print(f"lagamine-py: {exc}", file=sys.stderr)
+        return None
     except DeckError as exc:
         print(f"lagamine-py: the deck has errors; nothing was run:\n{exc}", file=sys.stderr)
         return None
 
 
 def _cmd_check(args) -> int:
-    model = _load(args.deck)
+    model = _load(args.deck, args.param)
     if model is None:
         return EXIT_DECK
     print(f"{args.deck}: OK ({len(model.node_ids)} nodes, "
@@ -101,7 +118,7 @@ def _cmd_run(args) -> int:
     else:
         deck = args.deck
         outdir = args.output or Path(f"{Path(deck).stem}_out")
-    model = _load(Path(deck))
+    model = _load(Path(deck), args.param)
     if model is None:
         return EXIT_DECK
     if args.solver:
