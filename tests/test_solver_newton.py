@@ -150,3 +150,20 @@ def test_flip_flopping_contact_points_are_frozen():
     assert seen[3]["BOTTOM->FLAT"].tolist() == [1, -1]
     assert seen[4]["BOTTOM->FLAT"].tolist() == [1, -1]   # frozen at the status it had
     assert ctx.freeze_contact is None                 # the caller's context is not modified
+
+
+class WrongTangent(Springs):
+    def compute(self, u_new, u_old, state, ctx, tangent=True):
+        res = super().compute(u_new, u_old, state, ctx, tangent)
+        if res.K is not None:
+            res.K = res.K * 1.01
+        return res
+
+
+def test_check_tangent_tool():
+    rng = np.random.default_rng(5)
+    u = rng.normal(size=6) * 0.3
+    problem, _ = setup(cubic_chain(), 3, [])
+    assert problem.check_tangent(u, u, problem.init_states(), StepContext()) < 1e-7
+    problem, _ = setup([WrongTangent([[GROUND, 0], [0, 2]], 1.0, a=1.0)] + cubic_chain()[1:], 3, [])
+    assert problem.check_tangent(u, u, problem.init_states(), StepContext()) > 1e-3

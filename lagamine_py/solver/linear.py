@@ -183,8 +183,16 @@ class PardisoSolver(LinearSolver):
         self.ps = pypardiso.PyPardisoSolver(mtype=11)
 
     def factor(self, A: sp.csr_matrix) -> None:
-        self.A = A.tocsr()
-        self.ps.factorize(self.A)
+        A = A.tocsr()
+        # pypardiso hands indptr/indices to MKL as 32-bit integers; it segfaults on empty rows
+        self.A = sp.csr_matrix((A.data, A.indices.astype(np.int32), A.indptr.astype(np.int32)),
+                               shape=A.shape)
+        if not np.diff(self.A.indptr).all():
+            raise SingularMatrixError(_suspects(self.A), "empty row")
+        try:
+            self.ps.factorize(self.A)
+        except Exception as exc:          # PyPardisoError: zero pivot and the like
+            raise SingularMatrixError(_suspects(self.A), f"PARDISO: {exc}") from None
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         x = self.ps.solve(self.A, np.asarray(b, float))

@@ -81,6 +81,26 @@ class Problem:
         data = self.pattern.assemble_data([r.K for r in results]) if tangent else None
         return Evaluation(f_int, data, [r.state for r in results], scale, results)
 
+    def check_tangent(self, u_new: np.ndarray, u_old: np.ndarray, states: list[dict], ctx,
+                      h: float = 1e-7, dofs=None) -> float:
+        """Largest difference between the assembled tangent and central finite differences of
+        the assembled force, relative to the largest tangent entry (a debugging tool; freeze
+        the contact status through ``ctx.freeze_contact`` to check across a status switch).
+
+        ``h`` is relative to the largest |u| (or absolute when u = 0); ``dofs`` restricts the
+        checked columns (default: all)."""
+        K = self.pattern.matrix(self.evaluate(u_new, u_old, states, ctx, True).data).toarray()
+        step = h * max(float(np.abs(u_new).max(initial=0.0)), 1.0)
+        cols = np.arange(self.ndof) if dofs is None else np.asarray(dofs)
+        err = 0.0
+        for j in cols:
+            e = np.zeros(self.ndof)
+            e[j] = step
+            fp = self.evaluate(u_new + e, u_old, states, ctx, False).f_int
+            fm = self.evaluate(u_new - e, u_old, states, ctx, False).f_int
+            err = max(err, float(np.abs((fp - fm) / (2 * step) - K[:, j]).max()))
+        return err / max(float(np.abs(K).max()), 1e-300)
+
     def set_pressures(self, values: dict[str, float]) -> None:
         """Set the uniform pressure of each loaded surface (surfaces not listed: 0)."""
         for name, grp in self.pressure_groups.items():
