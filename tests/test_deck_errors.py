@@ -110,7 +110,7 @@ CASES = [
     ("step data outside a step", edit("*STEP\n", "*CLOAD\n1, 1, 5\n*STEP\n"), "*CLOAD", "CLOAD",
      ["must be inside a step"]),
     ("unreadable keyword line", edit("*SOLID, ELSET=E, MATERIAL=M", "*SOLID ELSET=E, MATERIAL=M"),
-     "*SOLID ELSET=E, MATERIAL=M", "SOLID ELSET", ["cannot read this keyword line", "column"]),
+     "*SOLID ELSET=E, MATERIAL=M", "SOLID", ["cannot read this keyword line", "column"]),
     ("unreadable data line", edit("2, 1, 0", "2, 1 0"), "2, 1 0", "NODE", ["cannot read this data line", "column 6"]),
     ("undefined parameter", edit("E=100", "E=<YOUNG>"), "E=<YOUNG>, NU=0.3", "MATERIAL",
      ["parameter <YOUNG> is not defined"]),
@@ -229,3 +229,19 @@ def test_cli_check_exits_2_on_a_bad_deck(tmp_path, capsys):
     assert main(["check", str(deck)]) == 2
     err = capsys.readouterr().err
     assert "bad.dat:7: *ELEMENT: TYPE=Q4PF: unknown element Q4PF (did you mean Q4PE?)" in err
+
+
+def test_unreadable_step_line_still_opens_its_step(tmp_path):
+    deck = tmp_path / "step.dat"
+    deck.write_text(edit("*STEP\n", "*STEP NAME=ONE\n"))
+    with pytest.raises(DeckError) as info:
+        load_deck(deck)
+    (p,) = info.value.problems              # no "*STATIC must be inside a step" after it
+    assert (p.line, p.keyword) == (12, "STEP") and "cannot read this keyword line" in p.message
+
+
+def test_empty_deck_is_an_error(tmp_path):
+    deck = tmp_path / "empty.dat"
+    deck.write_text("** nothing here\n\n")
+    with pytest.raises(DeckError, match="empty.dat:1: the deck has no keyword lines"):
+        load_deck(deck)

@@ -39,6 +39,8 @@ def load_deck(path, parameters: dict[str, str] | None = None) -> Model:
     """
     problems = Problems()
     blocks, _ = parse_deck_blocks(path, problems, parameters)
+    if not blocks and not problems:
+        problems.add(str(path), 1, "", "the deck has no keyword lines (an empty deck?)")
     model = build_model(Path(path).stem, blocks, problems)
     problems.raise_if_any()
     return model

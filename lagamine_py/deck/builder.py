@@ -207,8 +207,6 @@ class _Builder:
     def _block(self, blk: Block) -> None:
         kw = blk.keyword
         spec = KEYWORDS.get(kw)
-        if kw == "INCLUDE" and not blk.data:
-            return                                   # expanded (or reported) by the reader
         if spec is None:
             if not blk.broken:
                 self.pb.at(blk, f"unknown keyword *{kw}" + did_you_mean(kw, KEYWORDS).replace("mean ", "mean *"))

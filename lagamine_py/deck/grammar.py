@@ -146,7 +146,8 @@ class _Grammar:
             return pp.FollowedBy((pp.Literal("\n") | pp.StringEnd()).set_name(what))
         comma = pp.Suppress(",").set_name("','")
 
-        number = pp.Regex(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?(?![\w.<>])").set_name("number")
+        num = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?"
+        number = pp.Regex(num + r"(?![\w.<>])").set_name("number")
         number.set_parse_action(lambda t: Num(t[0]))
         name = pp.Regex(r"[A-Za-z_][\w.\-]*(?![<>])").set_name("name")
         name.set_parse_action(lambda t: Name(t[0]))
@@ -162,6 +163,9 @@ class _Grammar:
         items = item + pp.ZeroOrMore(comma + item) + pp.Optional(comma)
         data_line = (items + eol("',' and a number, name or KEY=VALUE, or the end of the line")).set_name("data line")
         data_line.set_parse_action(self._data_line)
+        # Fast path for the bulk of a mesh (nodes, elements): a line of numbers only, one Regex.
+        numbers_line = pp.Regex(rf"{num}(?:[ \t]*,[ \t]*{num})*[ \t]*,?[ \t\r]*(?=\n|$)").set_name("numbers")
+        numbers_line.set_parse_action(self._numbers_line)
 
         kw = pp.Regex(r"\*[ \t]*[A-Za-z][\w\-]*(?:[ \t]+[A-Za-z][\w\-]*)*").set_name("*KEYWORD")
         pname = pp.Regex(r"[A-Za-z_][\w\-]*").set_name("parameter name")
@@ -181,8 +185,9 @@ class _Grammar:
         bad = pp.Regex(r"[^\n]+").set_name("line")
         bad.set_parse_action(lambda s, loc, t: BadLine(self.lineno(loc), t[0].rstrip()))
 
-        line = (comment | heading_section | kw_line | data_line | bad).set_name("line")
-        self.deck = (pp.ZeroOrMore(line | nl) + pp.StringEnd()).set_name("deck")
+        # most frequent first: line ends, then lines of numbers (the mesh)
+        line = (nl | numbers_line | comment | heading_section | kw_line | data_line | bad).set_name("line")
+        self.deck = (pp.ZeroOrMore(line) + pp.StringEnd()).set_name("deck")
         self.strict_kw = kw_line + pp.StringEnd()
         self.strict_data = data_line + pp.StringEnd()
         self.strict_item = item + pp.StringEnd()
@@ -190,6 +195,9 @@ class _Grammar:
     def lineno(self, loc: int) -> int:
         """Line number (1-based) of a position in the text being parsed."""
         return bisect.bisect_right(self._local.starts, loc) + 1
+
+    def _numbers_line(self, s, loc, t):
+        return DataLine(self.lineno(loc), [Num(v.strip()) for v in t[0].rstrip(" \t\r,").split(",")])
 
     def _data_line(self, s, loc, t):
         return DataLine(self.lineno(loc), list(t))
@@ -326,6 +334,8 @@ class _Reader:
 
     def _data(self, dl: DataLine, label: str, keyword: str):
         """Resolve Ref fields and Pair values to typed tokens; None if one cannot be."""
+        if all(type(it) is Num for it in dl.items):
+            return dl
         items, ok = [], True
         for it in dl.items:
             if isinstance(it, Pair) and isinstance(it.value, Ref):
@@ -366,9 +376,15 @@ class _Reader:
 
 
 def _bad_keyword(text: str) -> str | None:
-    """The keyword of an unreadable keyword line (None for a data line)."""
-    m = re.match(r"\s*\*([^,=]*)", text)
-    return (_keyword_name(m.group(1)) or "?") if m else None
+    """The keyword of an unreadable keyword line (None for a data line): the words before the
+    first comma, less a parameter name glued to it (``*SOLID ELSET=E`` -> ``SOLID``)."""
+    m = re.match(r"\s*\*([^,]*)", text)
+    if m is None:
+        return None
+    words = m.group(1).split("=")[0].split()
+    if "=" in m.group(1) and len(words) > 1:
+        words = words[:-1]
+    return " ".join(words).upper() or "?"
 
 
 def _group(lines, problems: Problems) -> list[Block]:
