@@ -119,6 +119,7 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     du_imposed[c] = u_c - u[c]
     imposing = bool(np.any(du_imposed[c] != 0.0))
     tracker = _FlipFlop(problem, settings.flipflop)
+    node_ids = getattr(getattr(problem, "model", None), "node_ids", None)
     ctx_k = ctx
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
@@ -140,7 +141,7 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
                                  f"(|R|/F = {rel:.3e})", history)
         _check_divergence(history)
         rhs = -Rf - (free.kfc_dot(ev.data, du_imposed) if imposing else 0.0)
-        du_f = _linear_solve(solver, free, ev.data, rhs, stabilize)
+        du_f = _linear_solve(solver, free, ev.data, rhs, stabilize, node_ids)
         energy = abs(float(du_f @ rhs))
         log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
         if not np.all(np.isfinite(du_f)):
@@ -173,7 +174,7 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
 STABILISATION = 1e-2         # relative diagonal added to a singular tangent (contact models)
 
 
-def _linear_solve(solver, free, data, rhs, stabilize: bool = False):
+def _linear_solve(solver, free, data, rhs, stabilize: bool = False, node_ids=None):
     """Solve ``K_ff du_f = rhs``.
 
     With ``stabilize``, a singular ``K_ff`` (a body resting on a foundation with its contact
@@ -191,8 +192,8 @@ def _linear_solve(solver, free, data, rhs, stabilize: bool = False):
         diag = np.abs(A.diagonal())
         floor = float(np.median(diag[diag > 0])) if np.any(diag > 0) else 1.0
         bump = STABILISATION * np.maximum(diag, 1e-6 * floor)
-        log.info("    singular tangent (%s); stabilised with %.0e diag(K)",
-                 exc.describe() if len(exc.dofs) < 5 else f"{len(exc.dofs)} DOFs", STABILISATION)
+        where = SingularMatrixError(free.free[exc.dofs]).describe(node_ids).split("; ", 1)[-1]
+        log.info("    singular tangent (%s); stabilised with %.0e diag(K)", where, STABILISATION)
         try:
             solver.factor((A + sp.diags(bump, format="csr")).tocsr())
         except SingularMatrixError as exc2:
