@@ -146,6 +146,9 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
 
 # ---------------------------------------------------------------- checking a block
 
+_INT_MAX = 2**31 - 1       # ids and counts must fit the int arrays of the Model
+
+
 def _number(text: str) -> float:
     value = float(text.replace("d", "e").replace("D", "E"))
     if not math.isfinite(value):
@@ -182,8 +185,8 @@ def _convert_param(p: P, raw: str | None) -> Any:
     except ValueError:
         raise ValueError(f"{p.name} must be a number, got {raw!r}") from None
     if p.type == "int":
-        if value != int(value):
-            raise ValueError(f"{p.name} must be an integer, got {raw!r}")
+        if value != int(value) or abs(value) > _INT_MAX:
+            raise ValueError(f"{p.name} must be an integer below 2^31, got {raw!r}")
         value = int(value)
     if p.choices and value not in p.choices:
         raise ValueError(f"{p.name} must be one of {', '.join(map(str, p.choices))}, got {raw!r}")
@@ -230,14 +233,14 @@ def _convert_cell(col: Col, tok) -> Any:
         if not math.isfinite(tok):
             raise ValueError(f"{col.label} must be finite, got {tok.text!r}")
         if col.type == "int":
-            if tok != int(tok):
-                raise ValueError(f"{col.label} must be an integer, got {tok.text!r}")
+            if tok != int(tok) or abs(tok) > _INT_MAX:
+                raise ValueError(f"{col.label} must be an integer below 2^31, got {tok.text!r}")
             return int(tok)
         return float(tok)
     if col.type == "ref":
         if isinstance(tok, Num):
-            if not math.isfinite(tok) or tok != int(tok):
-                raise ValueError(f"{col.label} must be an integer id or a set name, got {tok.text!r}")
+            if not math.isfinite(tok) or tok != int(tok) or abs(tok) > _INT_MAX:
+                raise ValueError(f"{col.label} must be an integer id below 2^31 or a set name, got {tok.text!r}")
             return int(tok)
         return str(tok).upper()
     if col.type == "face":
