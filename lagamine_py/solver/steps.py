@@ -170,7 +170,7 @@ class Controller:
                     cutbacks += 1
                     self._report_failure(si, step, inc, t, dt_try, cutbacks, exc, reason)
                     dt_try *= controls["CUTBACK"]
-                    if dt_try < step.dt_min:
+                    if dt_try < step.dt_min or dt_try <= 1e-14 * T:     # (dt_min may be 0)
                         raise StepFailed(
                             f"step {si + 1} ({step.name}) could not converge: at step time "
                             f"{t:g} of {T:g} (total time {self.time_offset + t:g}) the time "
