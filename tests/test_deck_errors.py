@@ -186,7 +186,8 @@ def test_error_in_included_file_names_that_file(tmp_path):
     (tmp_path / "mesh").mkdir()
     (tmp_path / "mesh" / "part.inp").write_text("*NODE\n1, 0, 0\n2, x, 0\n")
     deck = tmp_path / "main.dat"
-    deck.write_text("*INCLUDE, INPUT=mesh/part.inp\n" + BASE.split("*ELEMENT")[0].replace("*NODE\n1, 0, 0\n2, 1, 0\n", ""))
+    rest = BASE.split("*ELEMENT")[0].replace("*NODE\n1, 0, 0\n2, 1, 0\n", "")
+    deck.write_text("*INCLUDE, INPUT=mesh/part.inp\n" + rest)
     with pytest.raises(DeckError) as info:
         load_deck(deck)
     (p,) = [p for p in info.value.problems if "non-numeric" in p.message]
@@ -208,7 +209,7 @@ def test_many_inverted_elements_are_named_by_id(tmp_path):
     # a 3 x 1 row of squares; elements 11 and 13 are given clockwise
     nodes = "".join(f"{i + 1}, {i % 4}, {i // 4}\n" for i in range(8))
     elems = "11, 1, 5, 6, 2\n12, 2, 3, 7, 6\n13, 3, 7, 8, 4\n"
-    text = f"*NODE\n{nodes}*ELEMENT, TYPE=Q4PE, ELSET=E\n{elems}" + BASE.split("\n*MATERIAL", 1)[1].join(["*MATERIAL", ""])
+    text = f"*NODE\n{nodes}*ELEMENT, TYPE=Q4PE, ELSET=E\n{elems}*MATERIAL" + BASE.split("\n*MATERIAL", 1)[1]
     deck = tmp_path / "inv.dat"
     deck.write_text(text)
     with pytest.raises(DeckError) as info:

@@ -77,7 +77,8 @@ TOKENS = ["*", "**", ",", "=", "<P>", "<Q>", "*NODE", "*ELEMENT", "*STEP", "*END
           "P", "E=1", "NU=0.7", "KP=-1", "x", "\t", " ", "\n", "\r\n", "é", "\x00", "9" * 30]
 
 # DECK_FUZZ_EXAMPLES=5000 for a longer hunt
-settings_ = settings(max_examples=int(os.environ.get("DECK_FUZZ_EXAMPLES", 200)), deadline=None, suppress_health_check=list(HealthCheck))
+settings_ = settings(max_examples=int(os.environ.get("DECK_FUZZ_EXAMPLES", 200)), deadline=None,
+                     suppress_health_check=list(HealthCheck))
 
 
 _DIR = tempfile.TemporaryDirectory(prefix="deck_fuzz_")   # one directory, files rewritten per example

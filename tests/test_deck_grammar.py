@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from lagamine_py.deck import DeckError, KEYWORDS, load_deck, parse_deck, reference_markdown
+from lagamine_py.deck.grammar import GRAMMAR
 from lagamine_py.elements.shapes import Q8_FACES
 
 
@@ -46,6 +47,10 @@ def test_heading_text_is_free_and_crlf_is_accepted(tmp_path):
     blocks = parse_deck(write(tmp_path, text))
     assert blocks[0].text == ["A block, pressed (§7) <not a parameter>"]
     assert blocks[1].keyword == "NODE" and blocks[1].data[0].line == 5
+    # the grammar itself, on text that did not go through universal-newline reading
+    lines = GRAMMAR.parse_text(text)
+    assert [type(x).__name__ for x in lines] == ["KeywordLine", "TextLine", "KeywordLine", "DataLine"]
+    assert lines[1].text == "A block, pressed (§7) <not a parameter>" and lines[3].line == 5
 
 
 def test_include_keeps_file_and_line_and_data_continues(tmp_path):

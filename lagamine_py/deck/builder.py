@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import Any
-
 import numpy as np
 
 from .. import registry
@@ -363,14 +361,14 @@ class _Builder:
             self.pb.at(blk, f"NX={nx}, NY={ny} makes too many nodes")
             return
         m = 2 if grp.nen == 8 else 1
-        I, J = m * nx + 1, m * ny + 1
-        ii, jj = np.meshgrid(np.arange(I), np.arange(J))          # (J, I): row by row from the bottom
+        ni, nj = m * nx + 1, m * ny + 1
+        ii, jj = np.meshgrid(np.arange(ni), np.arange(nj))        # (nj, ni): row by row from the bottom
         keep = ~((m == 2) & (ii % 2 == 1) & (jj % 2 == 1))         # serendipity: no centre node
         first = max(self.node_ids, default=0) + 1
-        grid = np.zeros((J, I), int)
+        grid = np.zeros((nj, ni), int)
         grid[keep] = first + np.arange(keep.sum())
-        x = params["X0"] + params["LX"] * ii[keep] / (I - 1)
-        y = params["Y0"] + params["LY"] * jj[keep] / (J - 1)
+        x = params["X0"] + params["LX"] * ii[keep] / (ni - 1)
+        y = params["Y0"] + params["LY"] * jj[keep] / (nj - 1)
         for nid, xn, yn in zip(grid[keep], x, y):
             self.node_at[int(nid)] = (blk.file, blk.line)
             self.row_of[int(nid)] = len(self.node_ids)

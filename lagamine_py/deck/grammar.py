@@ -142,6 +142,7 @@ class _Grammar:
 
     def _build(self):
         nl = pp.Literal("\n").set_name("end of line").suppress()
+
         def eol(what):
             return pp.FollowedBy((pp.Literal("\n") | pp.StringEnd()).set_name(what))
         comma = pp.Suppress(",").set_name("','")
@@ -176,7 +177,7 @@ class _Grammar:
         kw_line.set_parse_action(self._kw_line)
 
         comment = pp.Regex(r"\*\*[^\n]*").set_name("comment").suppress()
-        heading = pp.Regex(r"\*[ \t]*HEADING[ \t]*(?=\n|$)", re.IGNORECASE).set_name("*HEADING")
+        heading = pp.Regex(r"\*[ \t]*HEADING[ \t\r]*(?=\n|$)", re.IGNORECASE).set_name("*HEADING")
         heading.set_parse_action(lambda s, loc, t: KeywordLine(self.lineno(loc), "HEADING", []))
         text = pp.Regex(r"[^*\s][^\n]*").set_name("text")
         text.set_parse_action(lambda s, loc, t: TextLine(self.lineno(loc), t[0].rstrip()))

@@ -15,7 +15,7 @@ from typing import Any
 
 from ..registry import did_you_mean
 from .errors import Problems
-from .grammar import Block, DataRow, Name, Num, Pair
+from .grammar import Block, DataRow, Num, Pair
 
 
 @dataclass(frozen=True)
