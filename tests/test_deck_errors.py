@@ -246,3 +246,13 @@ def test_empty_deck_is_an_error(tmp_path):
     deck.write_text("** nothing here\n\n")
     with pytest.raises(DeckError, match="empty.dat:1: the deck has no keyword lines"):
         load_deck(deck)
+
+
+def test_deck_error_survives_pickling(tmp_path):
+    import pickle
+    deck = tmp_path / "bad.dat"
+    deck.write_text(edit("TYPE=Q4PE", "TYPE=Q4PF"))
+    with pytest.raises(DeckError) as info:
+        load_deck(deck)
+    again = pickle.loads(pickle.dumps(info.value))
+    assert again.problems == info.value.problems and str(again) == str(info.value)

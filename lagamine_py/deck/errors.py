@@ -28,6 +28,9 @@ class DeckError(Exception):
     def items(self) -> list[Problem]:
         return self.problems
 
+    def __reduce__(self):           # picklable (sweeps run decks in other processes)
+        return (type(self), (self.problems,))
+
 
 class Problems:
     """Collector of problems; :meth:`raise_if_any` stops with one DeckError holding them all."""
