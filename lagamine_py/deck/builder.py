@@ -349,6 +349,10 @@ class _Builder:
             self._add_elset(params["ELSET"], added)
 
     def _kw_mesh(self, blk, params, data):
+        """Structured rectangle.  Nodes are numbered on from the largest id, row by row from the
+        bottom-left corner, left to right (Q8: every grid point but the element centres);
+        elements likewise, from the largest element id.  Sides: nsets and surfaces NAME_BOTTOM
+        (faces S1), NAME_RIGHT (S2), NAME_TOP (S3), NAME_LEFT (S4)."""
         name = params["NAME"]
         grp = self._new_group(blk, params["TYPE"])
         if grp is None:
