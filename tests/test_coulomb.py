@@ -306,7 +306,8 @@ def _states():
 
 def _make_state(law, p_old, tau_old, lam_old):
     st = law.init_state(p_old.size)
-    st.update(p=p_old.copy(), tau=tau_old.copy(), lam=lam_old.copy())
+    st.update(p=p_old.copy(), tau=tau_old.copy(), lam=lam_old.copy(),
+              status=np.where(p_old > 0, STICK, OPEN).astype(np.int8))   # a consistent state
     return st
 
 

@@ -53,6 +53,8 @@ import inspect
 import numpy as np
 
 from ..foundation import Foundation
+
+FAR = 1e30          # penetration handed to the law for a point whose line misses the foundation
 from ..laws.base import OPEN, ContactLaw
 from .base import Group, GroupResult, StepContext
 from .shapes import gauss_1d, line_shape
@@ -126,6 +128,8 @@ class ContactGroup(Group):
         self.ng = nf * self.nq
         self.nd = 2 * nfn
         self.dofs = (2 * self.face_nodes[:, :, None] + np.arange(2)).reshape(nf, self.nd)
+        # |d| below round-off of the coordinates is exact touching (a body meshed on the foundation)
+        self._touch_tol = 1e-12 * max(1.0, float(np.abs(self.coords0).max(initial=0.0)))
         xi, self.w = gauss_1d(self.nq)
         self.N, self.dN = line_shape(nfn, xi)                     # (q, a)
         # d P_i / d x_J and d t_i / d x_J per Gauss point, tiled over faces: (g, 2, nd)
@@ -176,11 +180,15 @@ class ContactGroup(Group):
 
     def _penetration(self, x, c, scale, geo):
         """d (g,) and D d / D u_new (g, nd) (zeros when ``scale`` is 0) for positions x
-        (f, a, 2) that move with ``scale`` * u_new.  Points not found: d = 0, derivative 0."""
+        (f, a, 2) that move with ``scale`` * u_new.  Points not found: far open (d = -FAR),
+        derivative 0.  Round-off touching (|d| <= tolerance) is snapped to d = 0, which the law
+        treats as closed with p = 0: a body meshed on the foundation has contact stiffness from
+        the first iteration, without a fake gap or spring."""
         P, t = self._axes_t(x, geo)
         e_u, de = _de_u_dt(t)
         pr = self.foundation.project(P, e_u, c)
-        d = np.where(pr.found, pr.d, 0.0)
+        d = np.where(pr.found, pr.d, -FAR)
+        d = np.where(np.abs(d) <= self._touch_tol, 0.0, d)
         if scale == 0.0:
             return d, np.zeros((self.ng, self.nd)), pr
         Dd = scale * np.einsum("gi,giJ->gJ", pr.dd_dP, self._AP)

@@ -51,10 +51,12 @@ algebraic equation is linear in ``s``, so ``|tau| = B(lam) + phi(lam) p(s(lam))`
 closed form and is integrated by 8-point Gauss-Legendre in ``lam`` on each piece between kinks
 (exact when ``HPHI = 0`` or ``p`` is constant; rational and smooth otherwise).
 
-*Re-contact* (``p_old == 0`` and ``d > 0``) starts from ``p = tau = 0`` with the part of ``dv``
-after contact, ``dv d/du`` when ``0 < d <= du``.  *Separation* (``d <= 0``): ``p = tau = 0``,
+*Contact* is ``d >= 0``: a point exactly touching (``d = 0``, e.g. a body meshed on the
+foundation) is closed with ``p = 0`` and the elastic tangent, so the first iteration of a
+loaded step already has contact stiffness.  *Re-contact* (``p_old == 0`` and ``d >= 0``) starts from ``p = tau = 0`` with the part of ``dv``
+after contact, ``dv d/du`` when ``0 < d <= du``.  *Separation* (``d < 0``): ``p = tau = 0``,
 OPEN; ``lam``, ``slip``, ``dissip`` are kept while open.  In the sub-interval where a point
-separates (``p_old > 0``, ``d <= 0``) the part before ``d`` reaches 0 (fraction
+separates (``p_old > 0``, ``d < 0``) the part before ``d`` reaches 0 (fraction
 ``d_old/(d_old - d)`` of ``dv``, ``p`` falling to 0) is integrated like any other, so the slip
 forced by the shrinking cone is not lost; only then are ``p`` and ``tau`` zeroed.
 
@@ -170,14 +172,16 @@ class Coulomb(ContactLaw):
         d, du, dv = (np.broadcast_to(np.asarray(x, float), p_old.shape) for x in (d, du, dv))
         kp, kt = self.kp, self.kt
         hold = np.full(p_old.shape, -1) if frozen is None else np.broadcast_to(frozen, p_old.shape)
-        contact = (d > 0.0) & (hold != OPEN)
+        contact = (d >= 0.0) & (hold != OPEN)          # d = 0: touching, closed with p = 0
         p1 = np.where(contact, kp * np.maximum(d, 0.0), 0.0)
 
         # the in-contact part of the sub-interval: re-contact starts from p = tau = 0 with the
         # part of dv after touching; separation integrates the slip up to the moment p = 0
         d_old = d - du
-        recon = contact & (p_old <= 0.0)
-        partial = recon & (d <= du)
+        # re-contact: the point was open (status, not p: a point touching at d = 0 has p = 0
+        # but keeps its tau through the sub-intervals)
+        recon = contact & (np.asarray(state["status"]) == OPEN)
+        partial = recon & (d <= du) & (du > 0.0)         # du = 0 at d = 0: touching all along
         sep = ~contact & (p_old > 0.0) & (d_old > 0.0) & (d <= 0.0) & (hold != OPEN)
         safe_du = np.where(partial, du, 1.0)
         frac = np.where(partial, d / safe_du, 1.0)
@@ -227,7 +231,13 @@ class Coulomb(ContactLaw):
         if self.indicator == "CLASSICAL":                       # actual (plastic) rates
             h0 = hb0 + hphi0 * p0
             indicator = h0 * indicator / (h0 + kt)
-        loading_on = on & (indicator >= 0.0)                    # paper: unloading iff < 0
+        # paper: unloading iff < 0; at exactly neutral loading (a point resting at the tip of the
+        # cone, B = 0, before anything moves) the elastic branch gives the stick tangent, so a
+        # body meshed on the foundation is not left without tangential stiffness
+        if self.indicator == "CLASSICAL":                       # kept as the textbook states it
+            loading_on = on & (indicator >= 0.0)
+        else:
+            loading_on = on & ((indicator > 0.0) | ((indicator == 0.0) & (f_tr > 0.0)))
         reversed_through = on & ~loading_on & (sig_tr != sig0) & (f_tr > 0.0)
         crossing = contact & ~on & (f_tr > 0.0)                 # starts inside, yields part-way
         return loading_on | reversed_through | crossing, sig_tr

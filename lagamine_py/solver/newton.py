@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 
 from .linear import SingularMatrixError
 
@@ -94,7 +93,7 @@ class Converged:
 
 def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict], ctx,
                     u_c: np.ndarray, f_ext: np.ndarray, settings: Settings,
-                    floor: float = 0.0, stabilize: bool = False) -> Converged:
+                    floor: float = 0.0) -> Converged:
     """Solve one increment.
 
     Parameters
@@ -110,8 +109,6 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     u_c : (c,) imposed values at the end of the increment, at ``free.constrained``.
     f_ext : (ndof,) external nodal forces at the end of the increment.
     floor : absolute floor of the force scale.
-    stabilize : retry a singular tangent with a fictitious stiffness on its zero-pivot DOFs
-        (tangent only; used when the model has contact, see :func:`_linear_solve`).
     """
     c = free.constrained
     u = np.array(u_old, float)
@@ -119,7 +116,6 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     du_imposed[c] = u_c - u[c]
     imposing = bool(np.any(du_imposed[c] != 0.0))
     tracker = _FlipFlop(problem, settings.flipflop)
-    node_ids = getattr(getattr(problem, "model", None), "node_ids", None)
     ctx_k = ctx
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
@@ -141,7 +137,7 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
                                  f"(|R|/F = {rel:.3e})", history)
         _check_divergence(history)
         rhs = -Rf - (free.kfc_dot(ev.data, du_imposed) if imposing else 0.0)
-        du_f = _linear_solve(solver, free, ev.data, rhs, stabilize, node_ids)
+        du_f = _linear_solve(solver, free, ev.data, rhs)
         energy = abs(float(du_f @ rhs))
         log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
         if not np.all(np.isfinite(du_f)):
@@ -171,34 +167,14 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     raise AssertionError("unreachable")
 
 
-STABILISATION = 1e-2         # relative diagonal added to a singular tangent (contact models)
-
-
-def _linear_solve(solver, free, data, rhs, stabilize: bool = False, node_ids=None):
-    """Solve ``K_ff du_f = rhs``.
-
-    With ``stabilize``, a singular ``K_ff`` (a body resting on a foundation with its contact
-    points still open at d = 0, or a fully sliding interface leaving a rigid mode) is retried
-    as ``K_ff + STABILISATION * diag(K_ff)``: in the tangent only, the residual is untouched, so
-    a converged increment is still the exact equilibrium and only the Newton path changes.
-    Every DOF gets the same relative term so a symmetric problem stays symmetric (a rigid
-    mode is resisted uniformly instead of about one pinned node)."""
+def _linear_solve(solver, free, data, rhs):
+    """Solve ``K_ff du_f = rhs``; a singular ``K_ff`` raises SingularMatrixError naming the DOFs
+    (in global numbering) that nothing restrains."""
     A = free.kff(data)
     try:
         solver.factor(A)
     except SingularMatrixError as exc:
-        if not stabilize:
-            raise SingularMatrixError(free.free[exc.dofs], exc.detail) from None
-        diag = np.abs(A.diagonal())
-        floor = float(np.median(diag[diag > 0])) if np.any(diag > 0) else 1.0
-        bump = STABILISATION * np.maximum(diag, 1e-6 * floor)
-        where = SingularMatrixError(free.free[exc.dofs]).describe(node_ids).split("; ", 1)[-1]
-        log.info("    singular tangent (%s); stabilised with %.0e diag(K)", where, STABILISATION)
-        try:
-            solver.factor((A + sp.diags(bump, format="csr")).tocsr())
-        except SingularMatrixError as exc2:
-            raise SingularMatrixError(free.free[np.union1d(exc.dofs, exc2.dofs)],
-                                      exc2.detail) from None
+        raise SingularMatrixError(free.free[exc.dofs], exc.detail) from None
     return solver.solve(rhs)
 
 

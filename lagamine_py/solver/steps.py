@@ -201,8 +201,7 @@ class Controller:
         u_c = loads.bc_values(model, t_new)
         log.info("  increment at step time %g, dt %g", t_new, dt)
         conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
-                               settings, floor=FLOOR_FRACTION * self.force_ref,
-                               stabilize=self.has_contact)
+                               settings, floor=FLOOR_FRACTION * self.force_ref)
         conv.f_ext, conv.ctx = f_ext, ctx
         return conv
 
