@@ -30,7 +30,8 @@ compare), the relative ``errors`` per quantity and the headline ``error``.  Type
     Last increment, points not ``open``: ``max |gap - P/KP| / (P/KP)``.
 ``UNIAXIAL_RO`` (``E, SIGMA0, ALPHA, N, R0, H0``, optional ``NSET``)
     Homogeneous axisymmetric compression or tension of a cylinder, at the end of every step
-    (where displacements.csv has rows): true stress ``s = |RF2| / (r^2 / 2)`` (RF2 per radian of
+    (where displacements.csv has rows): Kirchhoff stress ``s = J |RF2| / (r^2 / 2)``, with
+    ``J = (r/R0)^2 h/H0`` the volume ratio (RF2 per radian of
     ``NSET``, default the node set with the largest ``|RF2|``), ``r = R0 + u1`` of the outermost
     node, log strain ``ln(h / H0)`` with ``h`` the current height; closed form
     ``eps = s/E + ALPHA (SIGMA0/E) (s/SIGMA0)^N``; ``error`` = max over steps of the relative
@@ -388,7 +389,10 @@ def check_uniaxial_ro(params: dict[str, Any], run: RunResults) -> dict[str, Any]
         r = r0 + float(d["u1"][outer])
         y = d["y"] + d["u2"]
         h = float(y.max() - y.min())
-        s = F / (0.5 * r**2)
+        # Kirchhoff stress = J x Cauchy: with Hencky strains and multiplicative plasticity the
+        # uniaxial curve holds exactly between the log strain and the Kirchhoff stress
+        J = (r / r0) ** 2 * (h / h0)
+        s = J * F / (0.5 * r**2)
         eps = abs(math.log(h / h0))
         eps_cf = _ro_strain(s, E, s0, alpha, n)
         # the stress on the curve at the measured strain: monotone in s, below E eps

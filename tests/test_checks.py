@@ -223,8 +223,9 @@ def ro_strain(s):
 
 
 def write_compression(d, stresses, force_factor=1.0):
-    """Homogeneous compression (deck compression_ro.dat) ending at the true stresses given, one
-    per step: height h0 exp(-eps), radius r0 exp(nu s/E + eps_p/2), axial force s r^2/2 per radian."""
+    """Homogeneous compression (deck compression_ro.dat) ending at the Kirchhoff stresses s given,
+    one per step: height h0 exp(-eps), radius r0 exp(nu s/E + eps_p/2), volume ratio
+    J = (r/r0)^2 h/h0, axial force (s/J) r^2/2 per radian (Cauchy stress s/J)."""
     X, Y = np.meshgrid(np.linspace(0, RO["R0"], 3), np.linspace(0, RO["H0"], 5))
     X, Y = X.ravel(), Y.ravel()
     disp = {k: [] for k in ("step", "increment", "time", "node", "x", "y", "u1", "u2")}
@@ -233,7 +234,8 @@ def write_compression(d, stresses, force_factor=1.0):
         eps = ro_strain(s)
         eps_p = eps - s / RO["E"]
         lam_r = math.exp(0.3 * s / RO["E"] + eps_p / 2)
-        F = force_factor * s * (RO["R0"] * lam_r) ** 2 / 2
+        J = lam_r**2 * math.exp(-eps)
+        F = force_factor * s / J * (RO["R0"] * lam_r) ** 2 / 2
         for n, (x, y) in enumerate(zip(X, Y), 1):
             for k, v in zip(disp, (step, 3, float(step), n, x, y, x * (lam_r - 1), y * (math.exp(-eps) - 1))):
                 disp[k].append(v)
