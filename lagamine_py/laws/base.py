@@ -29,12 +29,9 @@ class ReturnMappingError(ArithmeticError):
     """A law could not integrate an increment (the step controller cuts back)."""
 
 
-class MaterialLaw:
-    """Base of material plugins (``lagamine_py.laws`` entry-point group).
-
-    Subclasses declare ``params`` and implement :meth:`init_state` and :meth:`update`.
-    Constructed as ``Law(**validated_params)``; the values are on ``self.p`` (a dict) too.
-    """
+class ParametrizedLaw:
+    """What every law plugin shares: declared ``params``, validated at construction and stored
+    as ``self.p`` (a dict) and as lower-case attributes (``self.kp``, ``self.e`` ...)."""
 
     params: tuple[Param, ...] = ()
     doc: str = ""
@@ -43,6 +40,15 @@ class MaterialLaw:
         self.p = validate_params(type(self), values)
         for k, v in self.p.items():
             setattr(self, k.lower(), v)
+
+
+class MaterialLaw(ParametrizedLaw):
+    """Base of material plugins (``lagamine_py.laws`` entry-point group).
+
+    Subclasses declare ``params`` and implement :meth:`init_state` and :meth:`update`.
+    Constructed as ``Law(**validated_params)``; the values are on ``self.p`` (a dict) too.
+    """
+
 
     def init_state(self, shape: tuple[int, ...]) -> dict[str, np.ndarray]:
         """Committed state at t = 0 for points of ``shape`` (e.g. ``(e, q)``).
@@ -72,7 +78,7 @@ OPEN, STICK, SLIP = 0, 1, 2
 STATUS_NAMES = ("open", "stick", "slip")
 
 
-class ContactLaw:
+class ContactLaw(ParametrizedLaw):
     """Base of contact-law plugins (``lagamine_py.contact_laws`` entry-point group).
 
     The contact element computes, per contact Gauss point ``g`` and per sub-interval, the
@@ -91,18 +97,11 @@ class ContactLaw:
         tau_u = d tau_new / d du
         tau_v = d tau_new / d dv
         tau_tau = d tau_new / d tau_old (to chain sub-intervals)
-        p_p?  not needed: p_new = KP * max(d, 0) depends on d only.
+        (p_new = KP * max(d, 0) depends on d only.)
 
     ``self.theta`` and ``self.substeps`` are read by the contact element.
     """
 
-    params: tuple[Param, ...] = ()
-    doc: str = ""
-
-    def __init__(self, **values: Any):
-        self.p = validate_params(type(self), values)
-        for k, v in self.p.items():
-            setattr(self, k.lower(), v)
 
     def init_state(self, n: int) -> dict[str, np.ndarray]:
         z = np.zeros(n)
