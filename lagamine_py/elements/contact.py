@@ -22,6 +22,18 @@ the sub-interval, ``du_k = d_k - d_{k-1}`` (``d_0`` from the start configuration
 tangential relative displacement ``dv_k = e_v(theta) . (dP_k - dc_k)`` uses the axes at
 ``t_{k-1} + theta (t_k - t_{k-1})`` (``theta = law.theta``).
 
+``SUBSTEPS=AUTO`` (adaptive sub-intervals): the law integrates each sub-interval exactly, so
+the only error the count controls is that of taking the axes fixed at one instant of each
+sub-interval while the face turns (first order in the rotation per sub-interval for theta = 0
+or 1, second order for theta = 1/2).  The element measures the rotation angle of the face
+tangent between the start and end configurations at every Gauss point and takes
+``N = ceil(max angle / SUBTOL)``, clipped to ``[1, SUBMAX]`` -- one count for the whole group
+in this increment (the sub-interval loop is batched over all points, so a per-point count
+would cost the same as the largest one and be less accurate).  Without NLGEOM the axes do
+not turn: N = 1.  N is a piecewise-constant function of ``u_new``; for a given N the
+residual and the tangent are those of the fixed count, so the tangent stays exact between the
+(measure-zero) switches.
+
 Nodal forces (virtual work, section 6), the group's contribution to the internal side::
 
     F_ai = sum_q (p e_u + tau e_v)_i |t| N_a W  * (r in axisymmetry, per radian; thickness in
@@ -198,6 +210,30 @@ class ContactGroup(Group):
         Dd[~pr.found] = 0.0
         return d, Dd, pr
 
+    def rotation(self, x_old, x_new) -> np.ndarray:
+        """Angle (rad, (g,)) the face tangent turns through between face positions x_old
+        and x_new (f, a, 2)."""
+        _, t_o = self._at_points(x_old)
+        _, t_n = self._at_points(x_new)
+        cross = t_o[:, 0] * t_n[:, 1] - t_o[:, 1] * t_n[:, 0]
+        return np.abs(np.arctan2(cross, np.einsum("gi,gi->g", t_o, t_n)))
+
+    def substeps_for(self, x_old, x_new, geo: bool) -> int:
+        """Sub-intervals for this increment: ``law.substeps``, or with ``AUTO`` the smallest
+        count that keeps the rotation of the axes per sub-interval below ``law.subtol``
+        (capped at ``law.submax``; 1 without NLGEOM, where the axes do not turn)."""
+        n = getattr(self.law, "substeps", 1)
+        if not (isinstance(n, str) and n.upper() == "AUTO"):
+            return max(int(n), 1)
+        if not geo:
+            return 1
+        angle = float(self.rotation(x_old, x_new).max(initial=0.0))
+        tol = float(getattr(self.law, "subtol", 0.01))
+        cap = int(getattr(self.law, "submax", 32))
+        if not np.isfinite(angle):
+            return cap
+        return int(min(max(int(np.ceil(angle / tol - 1e-9)), 1), cap))
+
     def _call_law(self, state, d, du, dv, frozen):
         if frozen is not None and self._law_frozen:
             return self.law.update(state, d, du, dv, frozen=frozen)
@@ -209,11 +245,11 @@ class ContactGroup(Group):
         xo, xn = self._face_x(u_old), self._face_x(u_new)
         dx = xn - xo
         co, cn = self._translation(ctx, "old"), self._translation(ctx, "new")
-        nsub = max(int(getattr(self.law, "substeps", 1)), 1)
+        geo = bool(ctx.nlgeom)
+        nsub = self.substeps_for(xo, xn, geo)
         theta = float(getattr(self.law, "theta", 1.0))
         frozen = self._frozen(ctx)
         frozen_open = None if frozen is None else (frozen == OPEN)
-        geo = bool(ctx.nlgeom)
 
         d_prev, Dd_prev, _ = self._penetration(xo, co, 0.0, geo)  # start: fixed w.r.t. u_new
         st = {k: np.array(v, copy=True) for k, v in state.items()}

@@ -42,8 +42,9 @@ walking over the (at most two) clipping kinks; it depends only on ``(tau_tr, p_n
 This is the paper's eq. (11) when ``HPHI = HB = 0`` (``tau = sgn (B + phi p_new)``), and it is
 exact for *any* increment size with hardening or softening too, so sub-intervals are needed only
 to follow the rotation of the local axes in the contact element (``THETA`` and ``SUBSTEPS`` are
-read by the contact element; this law does not use them).  The tangent is the exact derivative
-of this map: ``d tau/d tau_tr = H/(KT+H)``, ``d tau/d p_new = sgn KT phi/(KT+H)``, which equals
+read by the contact element; this law does not use them; with ``SUBSTEPS=AUTO`` the element
+chooses the count per increment from the rotation of the axes, ``SUBTOL`` and ``SUBMAX``).
+The tangent is the exact derivative of this map: ``d tau/d tau_tr = H/(KT+H)``, ``d tau/d p_new = sgn KT phi/(KT+H)``, which equals
 the continuum matrix (10) at the end state.
 
 *Dissipation* ``dissip += int |tau| dlam`` along that same exact path: for a given ``lam`` the
@@ -112,7 +113,12 @@ class Coulomb(ContactLaw):
         Param("THETA", float, 1.0, bounds=(0.0, 1.0),
               doc="local axes taken at t0 + THETA dt (read by the contact element)"),
         Param("SUBSTEPS", int, 1, bounds=(1, None), choices=("AUTO",),
-              doc="sub-intervals per increment (read by the contact element)"),
+              doc="sub-intervals per increment (read by the contact element); AUTO: chosen "
+                  "per increment so that the local axes turn by at most SUBTOL in each"),
+        Param("SUBTOL", float, 0.01, bounds=(0.0, None), unit="rad",
+              doc="SUBSTEPS=AUTO: largest rotation of the local axes per sub-interval (> 0)"),
+        Param("SUBMAX", int, 32, bounds=(1, None),
+              doc="SUBSTEPS=AUTO: cap on the number of sub-intervals per increment"),
         Param("INDICATOR", str, "PREDICTOR", choices=("PREDICTOR", "CLASSICAL"),
               doc="loading indicator: PREDICTOR (paper); CLASSICAL only to show its failure"),
     )
@@ -126,11 +132,10 @@ class Coulomb(ContactLaw):
         if self.kt + min(self.hb, 0.0) <= 0.0:
             raise ParamError(f"HB = {self.hb:g} softens faster than the tangential penalty "
                              f"KT = {self.kt:g} allows (KT + HB must be > 0: snap-back)")
-        if self.substeps == "AUTO":
-            raise NotImplementedError(
-                "COULOMB: SUBSTEPS=AUTO is not implemented; give an integer. (This law "
-                "integrates each sub-interval exactly, so sub-intervals only refine the rotation "
-                "of the local axes in the contact element.)")
+        if self.substeps == "AUTO" and self.subtol <= 0.0:
+            # AUTO is resolved by the contact element (this law integrates each sub-interval
+            # exactly; sub-intervals only refine the rotation of the local axes)
+            raise ParamError(f"SUBTOL must be > 0 with SUBSTEPS=AUTO, got {self.subtol:g}")
 
     # -- hardening functions ---------------------------------------------------------------
     def adhesion(self, lam):
