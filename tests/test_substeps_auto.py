@@ -54,7 +54,7 @@ def test_auto_equals_the_fixed_count_it_picks():
     for key in ("lam", "slip"):
         np.testing.assert_array_equal(res.state[key], ref.state[key])
     # sliding without hardening: tau = B + phi p whatever the path, but the slip depends on it
-    assert np.abs(one.state["slip"] - ref.state["slip"]).max() > 1e-6
+    assert np.abs(one.state["slip"] - ref.state["slip"]).max() > 1e-7
 
 
 @pytest.mark.parametrize("ax", (False, True))
