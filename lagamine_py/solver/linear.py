@@ -15,6 +15,7 @@ SPLU otherwise).  The default COLAMD ``spsolve`` is never used (4-17x slower on 
 """
 from __future__ import annotations
 
+import ctypes
 import functools
 
 import numpy as np
@@ -166,6 +167,8 @@ def _suspects(A: sp.csr_matrix) -> np.ndarray:
 
 @functools.lru_cache(maxsize=None)
 def pardiso_available() -> bool:
+    from .._threads import prepare_openmp_env
+    prepare_openmp_env()                    # before MKL's OpenMP runtime loads
     try:
         import pypardiso  # noqa: F401
     except Exception:
@@ -174,31 +177,166 @@ def pardiso_available() -> bool:
 
 
 class PardisoSolver(LinearSolver):
-    """MKL PARDISO through pypardiso, real non-symmetric mode (mtype 11)."""
+    """MKL PARDISO through pypardiso: real non-symmetric mode (mtype 11), or symmetric
+    indefinite (mtype -2, upper triangle, LDL^T: about half the work) when the matrix is
+    symmetric to round-off.
+
+    The symbolic analysis (phase 11: ordering, matching, symbolic factor) is kept while the
+    structure of ``A`` and the mode do not change, so a Newton iteration pays only the numerical
+    factorisation (phase 22) and the solve (phase 33).  The structure is recognised by identity
+    of the ``indices``/``indptr`` arrays (``FreeDofs.kff`` hands out the same ones every
+    iteration) or, failing that, by comparing them.  Symmetry is tested on every factorisation
+    (``|A - A^T| <= SYM_RTOL max|A|``, one gather through a transpose permutation cached per
+    structure), so a contact status change that breaks symmetry switches the mode at once;
+    each switch costs one new analysis.  ``symmetric=False`` forces the non-symmetric mode.
+    """
 
     params = ()
+    SYM_RTOL = 1e-13
 
-    def __init__(self):
+    def __init__(self, symmetric: bool = True):
+        from .._threads import pin_threads, prepare_openmp_env
+        prepare_openmp_env()
         import pypardiso
-        self.ps = pypardiso.PyPardisoSolver(mtype=11)
+        pin_threads()
+        self._ps = pypardiso.PyPardisoSolver(mtype=11)      # loads mkl_rt
+        self._call = self._ps._mkl_pardiso
+        self.allow_symmetric = bool(symmetric)
+        self.pt = np.zeros(64, np.int64)
+        self.iparm = np.zeros(64, np.int32)
+        self.mtype = 0                      # 0: no analysis held
+        self.n = 0
+        self.analyses = 0                   # counters (benchmarks, tests)
+        self.factorizations = 0
+        self._struct = None                 # (indptr, indices) of the analysed structure
+        self._ia = self._ja = None
+
+    # -- structure ---------------------------------------------------------------------
+    def _same_structure(self, A) -> bool:
+        if self._struct is None:
+            return False
+        indptr, indices = self._struct
+        if A.indptr is indptr and A.indices is indices:
+            return True
+        return (A.shape[0] == self.n and np.array_equal(A.indptr, indptr)
+                and np.array_equal(A.indices, indices))
+
+    def _new_structure(self, A) -> None:
+        n = A.shape[0]
+        self.n = n
+        self._struct = (A.indptr, A.indices)
+        if not np.diff(A.indptr).all():
+            self._empty_rows = _suspects(A)
+        else:
+            self._empty_rows = None
+        rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(A.indptr))
+        # transpose permutation: data[tperm] is the data of A^T in A's CSR order (structurally
+        # symmetric patterns only, which element patterns are)
+        T = sp.csr_matrix((np.arange(A.nnz, dtype=np.float64), A.indices, A.indptr),
+                          shape=A.shape).T.tocsr()
+        T.sort_indices()
+        if np.array_equal(T.indptr, A.indptr) and np.array_equal(T.indices, A.indices):
+            self._tperm = T.data.astype(np.int64)
+        else:
+            self._tperm = None
+        self._upper = np.flatnonzero(A.indices >= rows)
+        up_rows = rows[self._upper]
+        self._ia_full = (A.indptr.astype(np.int32) + 1)
+        self._ja_full = (A.indices.astype(np.int32) + 1)
+        self._ia_sym = np.zeros(n + 1, np.int32)
+        np.cumsum(np.bincount(up_rows, minlength=n), out=self._ia_sym[1:])
+        self._ia_sym += 1
+        self._ja_sym = self._ja_full[self._upper]
+        self.mtype = 0                                   # force an analysis
+
+    def is_symmetric(self, A) -> bool:
+        """A is symmetric to round-off (and its structure is)."""
+        if self._tperm is None:
+            return False
+        d = A.data
+        scale = np.abs(d).max() if d.size else 0.0
+        return bool(np.abs(d - d[self._tperm]).max(initial=0.0) <= self.SYM_RTOL * scale)
+
+    # -- PARDISO calls -----------------------------------------------------------------
+    def _pardiso(self, phase: int, data, ia, ja, b=None, x=None) -> None:
+        c_int = ctypes.c_int32
+        ip = ctypes.POINTER(ctypes.c_int32)
+        dp = ctypes.POINTER(ctypes.c_double)
+        if b is None:
+            b = x = np.zeros(1)
+        nrhs = 1
+        err = c_int(0)
+        self._call(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
+                   ctypes.byref(c_int(1)), ctypes.byref(c_int(1)), ctypes.byref(c_int(self.mtype)),
+                   ctypes.byref(c_int(phase)), ctypes.byref(c_int(self.n)),
+                   data.ctypes.data_as(dp), ia.ctypes.data_as(ip), ja.ctypes.data_as(ip),
+                   np.zeros(0, np.int32).ctypes.data_as(ip), ctypes.byref(c_int(nrhs)),
+                   self.iparm.ctypes.data_as(ip), ctypes.byref(c_int(0)),
+                   b.ctypes.data_as(dp), x.ctypes.data_as(dp), ctypes.byref(err))
+        if err.value != 0:
+            raise _PardisoError(err.value)
+
+    def _release(self) -> None:
+        if self.mtype:
+            try:
+                self._pardiso(-1, np.zeros(1), self._ia, self._ja)
+            except _PardisoError:
+                pass
+            self.mtype = 0
+
+    def __del__(self):
+        try:
+            self._release()
+        except Exception:
+            pass
 
     def factor(self, A: sp.csr_matrix) -> None:
         A = A.tocsr()
-        # pypardiso hands indptr/indices to MKL as 32-bit integers; it segfaults on empty rows
-        self.A = sp.csr_matrix((A.data, A.indices.astype(np.int32), A.indptr.astype(np.int32)),
-                               shape=A.shape)
-        if not np.diff(self.A.indptr).all():
-            raise SingularMatrixError(_suspects(self.A), "empty row")
+        if not A.has_sorted_indices:
+            A = A.sorted_indices()
+        if not self._same_structure(A):
+            self._release()
+            self._new_structure(A)
+        if self._empty_rows is not None:      # MKL would crash on an empty row
+            raise SingularMatrixError(self._empty_rows, "empty row")
+        sym = self.allow_symmetric and self.is_symmetric(A)
+        mtype = -2 if sym else 11
+        if sym:
+            self._data = np.ascontiguousarray(A.data[self._upper], dtype=np.float64)
+            self._ia, self._ja = self._ia_sym, self._ja_sym
+        else:
+            self._data = np.ascontiguousarray(A.data, dtype=np.float64)
+            self._ia, self._ja = self._ia_full, self._ja_full
+        self._A = A
         try:
-            self.ps.factorize(self.A)
-        except Exception as exc:          # PyPardisoError: zero pivot and the like
-            raise SingularMatrixError(_suspects(self.A), f"PARDISO: {exc}") from None
+            if mtype != self.mtype:
+                self._release()
+                self.mtype = mtype
+                self.iparm[:] = 0            # PARDISO's defaults for this matrix type
+                self._pardiso(11, self._data, self._ia, self._ja)
+                self.analyses += 1
+            self._pardiso(22, self._data, self._ia, self._ja)
+            self.factorizations += 1
+        except _PardisoError as exc:
+            self._release()
+            raise SingularMatrixError(_suspects(A), f"PARDISO: {exc}") from None
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        x = self.ps.solve(self.A, np.asarray(b, float))
+        b = np.array(b, dtype=np.float64, order="F")
+        x = np.zeros_like(b)
+        try:
+            self._pardiso(33, self._data, self._ia, self._ja, b, x)
+        except _PardisoError as exc:
+            raise SingularMatrixError(_suspects(self._A), f"PARDISO: {exc}") from None
         if not np.all(np.isfinite(x)):
-            raise SingularMatrixError(_suspects(self.A), "PARDISO returned a non-finite solution")
+            raise SingularMatrixError(_suspects(self._A), "PARDISO returned a non-finite solution")
         return x
+
+
+class _PardisoError(RuntimeError):
+    def __init__(self, code: int):
+        super().__init__(f"error {code}")
+        self.code = code
 
 
 if pardiso_available():

@@ -1,0 +1,184 @@
+"""Linear solver plugins: PARDISO (symmetric / non-symmetric modes, analysis reuse) against SPLU.
+
+Every check is an exact invariant (the residual ``|A x - b|`` of the computed solution) or the
+agreement of two independent factorisations (SuperLU and MKL PARDISO), on tangents assembled
+from a real deck (press-then-slide: NLGEOM Ramberg-Osgood block, frictional contact, follower
+pressure), so that the matrices have the structure and the conditioning of a run.  PARDISO
+tests are skipped only when ``pypardiso`` cannot be imported (optional extra ``pardiso``).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from lagamine_py.deck import load_deck
+from lagamine_py.elements.base import StepContext
+from lagamine_py.solver import linear
+from lagamine_py.solver.linear import (FreeDofs, SingularMatrixError, SpluSolver,
+                                       make_solver, pardiso_available)
+from lagamine_py.solver.problem import build_problem
+
+DECKS = Path(__file__).resolve().parents[1] / "decks"
+needs_pardiso = pytest.mark.skipif(not pardiso_available(),
+                                   reason="pypardiso is not importable (optional extra 'pardiso')")
+
+
+@pytest.fixture(scope="module")
+def tangents():
+    """Reduced tangents of press_slide.dat (16 x 8 Q8): ``nonsym`` with the contact pressed and
+    sliding plus the follower pressure, ``sym`` of the solid group alone (no contact, no
+    pressure: symmetric in theory), and a right-hand side."""
+    model = load_deck(DECKS / "press_slide.dat")
+    problem = build_problem(model)
+    n = len(model.coords)
+    xy = model.coords
+    u = np.zeros(2 * n)
+    u[0::2] = 1e-3 * xy[:, 0] / 40.0
+    u[1::2] = -2e-3 * xy[:, 1] / 20.0 - 1e-4
+    problem.set_pressures({name: 200.0 for name in problem.pressure_groups})
+    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, load_factor=1.0,
+                      foundation_old={"FLAT": np.zeros(2)}, foundation_new={"FLAT": np.zeros(2)})
+    states = problem.init_states()
+    ev = problem.evaluate(u, np.zeros(2 * n), states, ctx, True)
+    right = np.flatnonzero(xy[:, 0] > 40 - 1e-9)
+    free = FreeDofs(problem.pattern, 2 * right)
+    nonsym = free.kff(ev.data)
+    k = problem.kinds.index("solid")
+    res = problem.groups[k].compute(u.reshape(-1, 2), np.zeros((n, 2)), states[k], ctx, True)
+    data = problem.pattern.assemble_data([res.K if j == k else None
+                                          for j in range(len(problem.groups))])
+    bottom = np.flatnonzero(xy[:, 1] < 1e-9)
+    free_sym = FreeDofs(problem.pattern, np.concatenate([2 * bottom, 2 * bottom + 1]))
+    sym = free_sym.kff(data)
+    b = np.random.default_rng(0).standard_normal(nonsym.shape[0])
+    return {"nonsym": nonsym, "sym": sym, "b": b}
+
+
+def _rel_residual(A, x, b):
+    return np.linalg.norm(A @ x - b) / np.linalg.norm(b)
+
+
+def test_fixture_matrices_are_what_they_claim(tangents):
+    A, S = tangents["nonsym"], tangents["sym"]
+    asym = abs(A - A.T).max() / abs(A).max()
+    assert asym > 1e-6                           # friction + follower pressure: non-symmetric
+    assert abs(S - S.T).max() <= 1e-13 * abs(S).max()
+
+
+def test_splu_solves_to_round_off(tangents):
+    A, b = tangents["nonsym"], tangents["b"]
+    s = SpluSolver()
+    s.factor(A)
+    assert _rel_residual(A, s.solve(b), b) < 1e-10
+
+
+@needs_pardiso
+@pytest.mark.parametrize("which, mtype", [("nonsym", 11), ("sym", -2)])
+def test_pardiso_agrees_with_splu(tangents, which, mtype):
+    A = tangents[which]
+    b = tangents["b"][: A.shape[0]]
+    ref = SpluSolver()
+    ref.factor(A)
+    x_ref = ref.solve(b)
+    p = linear.PardisoSolver()
+    p.factor(A)
+    x = p.solve(b)
+    assert p.mtype == mtype                       # symmetric mode only for a symmetric tangent
+    assert _rel_residual(A, x, b) < 1e-10
+    assert np.abs(x - x_ref).max() <= 1e-10 * np.abs(x_ref).max()
+
+
+@needs_pardiso
+def test_pardiso_reuses_the_analysis_while_the_structure_holds(tangents):
+    A = tangents["nonsym"]
+    b = tangents["b"]
+    p = linear.PardisoSolver()
+    p.factor(A)
+    # new values on the same structure (same index arrays, as FreeDofs.kff hands out)
+    rng = np.random.default_rng(1)
+    A2 = sp.csr_matrix((A.data * (1 + 0.1 * rng.random(A.nnz)), A.indices, A.indptr),
+                       shape=A.shape)
+    p.factor(A2)
+    assert (p.analyses, p.factorizations) == (1, 2)
+    x2 = p.solve(b)
+    assert _rel_residual(A2, x2, b) < 1e-10       # the new values were factorised
+    # equal structure in new arrays: still recognised
+    A3 = sp.csr_matrix((A.data.copy(), A.indices.copy(), A.indptr.copy()), shape=A.shape)
+    p.factor(A3)
+    assert p.analyses == 1
+    assert _rel_residual(A3, p.solve(b), b) < 1e-10
+    # another structure (a DOF dropped): new analysis
+    A4 = A[1:, 1:].tocsr()
+    p.factor(A4)
+    assert p.analyses == 2
+    assert _rel_residual(A4, p.solve(b[1:]), b[1:]) < 1e-10
+
+
+@needs_pardiso
+def test_pardiso_switches_mode_with_symmetry(tangents):
+    S = tangents["sym"]
+    b = tangents["b"][: S.shape[0]]
+    p = linear.PardisoSolver()
+    p.factor(S)
+    assert p.mtype == -2
+    # break the symmetry of one off-diagonal pair: back to the non-symmetric mode at once
+    T = S.copy()
+    row = 3
+    cols = slice(T.indptr[row], T.indptr[row + 1])
+    off = np.where(T.indices[cols] != row, np.abs(T.data[cols]), 0.0)
+    j = T.indptr[row] + int(np.argmax(off))               # largest off-diagonal entry of the row
+    T.data[j] *= 1.5
+    T = sp.csr_matrix((T.data, S.indices, S.indptr), shape=S.shape)
+    p.factor(T)
+    assert p.mtype == 11 and p.analyses == 2
+    assert _rel_residual(T, p.solve(b), b) < 1e-10
+    p_forced = linear.PardisoSolver(symmetric=False)
+    p_forced.factor(S)
+    assert p_forced.mtype == 11
+
+
+@needs_pardiso
+def test_pardiso_empty_row_is_singular():
+    A = sp.csr_matrix(np.array([[2.0, 1.0, 0.0], [0.0, 0.0, 0.0], [0.0, 1.0, 3.0]]))
+    with pytest.raises(SingularMatrixError):
+        linear.PardisoSolver().factor(A)
+
+
+def test_auto_picks_by_size(tangents, monkeypatch):
+    A, b = tangents["nonsym"], tangents["b"]
+    auto = make_solver("AUTO")
+    monkeypatch.setattr(linear, "AUTO_PARDISO_DOFS", A.shape[0] + 1)
+    auto.factor(A)
+    assert isinstance(auto.impl, SpluSolver)
+    if pardiso_available():
+        monkeypatch.setattr(linear, "AUTO_PARDISO_DOFS", A.shape[0] - 1)
+        auto.factor(A)
+        assert isinstance(auto.impl, linear.PardisoSolver)
+        assert _rel_residual(A, auto.solve(b), b) < 1e-10
+
+
+@needs_pardiso
+def test_whole_run_agrees_between_solvers(tmp_path):
+    """Press-then-slide-like contact run (coulomb_block.dat) with SPLU and with PARDISO: the
+    same increments, and displacements that agree to 1e-10 of their largest value."""
+    from lagamine_py.solver import run
+
+    from runner import Capture
+
+    out = {}
+    for name in ("SPLU", "PARDISO"):
+        model = load_deck(DECKS / "coulomb_block.dat")
+        for step in model.steps:
+            step.controls["SOLVER"] = name
+        cap = Capture()
+        outcome = run(model, tmp_path / name, writers=[cap])
+        assert outcome.status == 0, outcome.message
+        out[name] = cap.results
+    a, b = out["SPLU"], out["PARDISO"]
+    assert [(r.step, r.increment) for r in a] == [(r.step, r.increment) for r in b]
+    scale = max(np.abs(r.u).max() for r in a)
+    diff = max(np.abs(ra.u - rb.u).max() for ra, rb in zip(a, b))
+    assert diff <= 1e-10 * scale
