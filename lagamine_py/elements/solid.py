@@ -19,6 +19,8 @@ Axisymmetric integrals are per radian (``r dr dz``); plane-strain ones per ``THI
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from ..registry import register
@@ -81,9 +83,18 @@ def log_b(b2: np.ndarray, derivative: bool = False):
     derivative uses the Daleckii-Krein formula with the divided difference
     ``(ln l1 - ln l2) / (l1 - l2) = atanh(x) / (m x)``, ``m`` the mean eigenvalue and
     ``x = (l1 - l2) / (l1 + l2)``, whose limit 1/m covers equal eigenvalues.
+
+    With the eigenprojections ``P_k = v_k v_k^T`` and ``S = v_0 v_1^T + v_1 v_0^T`` the
+    Daleckii-Krein sum ``1/2 sum_kl g_kl (v_k v_l^T) x (v_k v_l^T)``, symmetrised in mn, is
+    ``1/2 (g_00 P_0 x P_0 + g_11 P_1 x P_1 + g_01 S x S / 2)``: three outer products instead
+    of a five-operand contraction.
     """
     lam, V = sym_eig2(b2)
-    E = _spectral(0.5 * np.log(lam), V)
+    v0, v1 = V[..., :, 0], V[..., :, 1]
+    P0 = v0[..., :, None] * v0[..., None, :]
+    P1 = v1[..., :, None] * v1[..., None, :]
+    half_log = 0.5 * np.log(lam)
+    E = half_log[..., 0, None, None] * P0 + half_log[..., 1, None, None] * P1
     if not derivative:
         return E
     m = 0.5 * (lam[..., 0] + lam[..., 1])
@@ -91,12 +102,16 @@ def log_b(b2: np.ndarray, derivative: bool = False):
     small = x < 1e-6
     xs = np.where(small, 1.0, x)
     ratio = np.where(small, 1.0 + x * x / 3.0, np.arctanh(np.minimum(xs, 1 - 1e-16)) / xs)
-    g = np.empty(lam.shape + (2,))
-    g[..., 0, 0], g[..., 1, 1] = 1.0 / lam[..., 0], 1.0 / lam[..., 1]
-    g[..., 0, 1] = g[..., 1, 0] = ratio / m
-    C = np.einsum("...kl,...ik,...jl,...mk,...nl->...ijmn", 0.5 * g, V, V, V, V, optimize=True)
-    C = 0.5 * (C + np.swapaxes(C, -1, -2))
+    S = v0[..., :, None] * v1[..., None, :]
+    S = S + np.swapaxes(S, -1, -2)
+    C = _outer22(P0, 0.5 / lam[..., 0]) + _outer22(P1, 0.5 / lam[..., 1]) \
+        + _outer22(S, 0.25 * ratio / m)
     return E, C
+
+
+def _outer22(A: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``c A_ij A_mn``: (..., 2, 2), (...) -> (..., 2, 2, 2, 2)."""
+    return (c[..., None, None] * A)[..., :, :, None, None] * A[..., None, None, :, :]
 
 
 def _det2(A):
@@ -194,6 +209,8 @@ class SolidGroup(Group):
         if self.axisymmetric:
             self._bad0 |= (self.R0 <= 0).any(axis=1)
         self._law_keys = tuple(law.init_state((1, 1)).keys())
+        self._views = None
+        self._cache = {}
 
     @property
     def nq(self) -> int:
@@ -223,6 +240,7 @@ class SolidGroup(Group):
         return B.reshape(ne, nq, 4, 2 * na)
 
     def _failure(self, mask: np.ndarray, what: str, state, tangent: bool) -> GroupResult:
+        self._last_failure = (what, mask)
         ids = ", ".join(str(int(i)) for i in self.ids[mask][:20])
         more = " ..." if mask.sum() > 20 else ""
         nd = self.dofs.shape[1]
@@ -231,17 +249,76 @@ class SolidGroup(Group):
         return GroupResult(f, K, state, failure=f"{what} in element(s) {ids}{more}")
 
     # -- the element computation --------------------------------------------------------------
+    #: elements per chunk: the (e, q, 16, 16)-sized temporaries of a chunk stay in cache
+    #: (measured on press-slide Q8 NLGEOM: 1024 about 1.5x faster per element than 12800 at once)
+    chunk = 1024
+
     def compute(self, u_new: np.ndarray, u_old: np.ndarray, state: dict[str, np.ndarray],
                 ctx: StepContext, tangent: bool = True) -> GroupResult:
-        """Internal force f (e, 2 nen), tangent K (e, 2 nen, 2 nen) and the trial state."""
+        """Internal force f (e, 2 nen), tangent K (e, 2 nen, 2 nen) and the trial state.
+
+        Large groups are computed in chunks of :attr:`chunk` elements (same results)."""
         if self._bad0.any():
             return self._failure(self._bad0, "non-positive reference Jacobian (or r <= 0)",
                                  state, tangent)
+        ne = len(self.conn)
+        if ne <= self.chunk or not all(np.ndim(v) and len(v) == ne for v in state.values()):
+            return self._compute_block(u_new, u_old, state, ctx, tangent)
+        return self._compute_chunked(u_new, u_old, state, ctx, tangent)
+
+    def _compute_block(self, u_new, u_old, state, ctx, tangent):
         law_state = {k: state[k] for k in self._law_keys}
         ue_new, ue_old = u_new[self.conn], u_old[self.conn]
         if ctx.nlgeom:
             return self._large_strain(ue_new, ue_old, state, law_state, tangent)
         return self._small_strain(ue_new, ue_old, state, law_state, tangent)
+
+    def _chunk_views(self) -> list[tuple[slice, "SolidGroup"]]:
+        """Shallow copies of the group restricted to consecutive element ranges (built once)."""
+        if getattr(self, "_views", None) is None:
+            ne = len(self.conn)
+            n = -(-ne // self.chunk)
+            bounds = np.linspace(0, ne, n + 1).round().astype(int)       # even chunk sizes
+            views = []
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                v = copy.copy(self)
+                sl = slice(int(a), int(b))
+                for name in ("ids", "conn", "dofs", "detJ0", "dNdX", "R0", "w0", "_bad0"):
+                    setattr(v, name, getattr(self, name)[sl])
+                v._views = None
+                v._cache = {}
+                views.append((sl, v))
+            self._views = views
+        return self._views
+
+    def _compute_chunked(self, u_new, u_old, state, ctx, tangent):
+        ne, nd = self.dofs.shape
+        f = np.empty((ne, nd))
+        K = np.empty((ne, nd, nd)) if tangent else None
+        new_state: dict[str, np.ndarray] = {}
+        failed: dict[str, np.ndarray] = {}
+        for sl, view in self._chunk_views():
+            r = view._compute_block(u_new, u_old, {k: v[sl] for k, v in state.items()}, ctx,
+                                    tangent)
+            if r.failure:
+                what, mask = view._last_failure
+                failed.setdefault(what, np.zeros(ne, bool))[sl] |= mask
+                continue
+            if failed:
+                continue
+            f[sl] = r.f
+            if tangent:
+                K[sl] = r.K
+            for k, v in r.state.items():
+                if k not in new_state:
+                    new_state[k] = np.empty((ne,) + v.shape[1:], v.dtype)
+                new_state[k][sl] = v
+        if failed:     # the first check that fails anywhere, as in one block
+            what = next(w for w in self._FAILURE_ORDER if w in failed)
+            return self._failure(failed[what], what, state, tangent)
+        return GroupResult(f, K, new_state)
+
+    _FAILURE_ORDER = ("non-positive det F", "return mapping failed")
 
     def _finish_law(self, ok, new_law_state, stress_cauchy, state, tangent):
         """New element state, or a failure result when the law's return mapping failed."""
@@ -268,26 +345,54 @@ class SolidGroup(Group):
 
     def _deformation(self, ue):
         """In-plane F (e, q, 2, 2), F33 (e, q) and the current radius (e, q) (R0 in plane strain)."""
-        F = np.eye(2) + np.swapaxes(ue, 1, 2)[:, None] @ self.dNdX      # (e, q, i, j)
+        ne, nq = self.R0.shape
+        # one (2, a) @ (a, q j) product per element rather than q tiny (2, a) @ (a, j) ones
+        F = (np.swapaxes(ue, 1, 2) @ self._dNdX_flat()).reshape(ne, 2, nq, 2).swapaxes(1, 2)
+        F = F + np.eye(2)                                                  # (e, q, i, j)
         if self.axisymmetric:
             r = self.R0 + np.einsum("qa,ea->eq", self.N, ue[..., 0])
             return F, r / self.R0, r
         return F, np.ones_like(self.R0), self.R0
 
+    def _dNdX_flat(self) -> np.ndarray:
+        """``dNdX`` as (e, a, q j), contiguous (cached)."""
+        flat = self._cache.get("dNdX_flat")
+        if flat is None:
+            ne, nq, na, _ = self.dNdX.shape
+            flat = np.ascontiguousarray(self.dNdX.transpose(0, 2, 1, 3)).reshape(ne, na, 2 * nq)
+            self._cache["dNdX_flat"] = flat
+        return flat
+
+    def _start_of_increment(self, ue_old, eps_e_n):
+        """``F_old^-1``, ``F33_old``, the ``det F_old <= 0`` mask and ``b_e_n = exp(2 eps_e_n)``
+        (in-plane and 33).  They depend only on the start of the increment, so they are kept
+        while ``ue_old`` and ``eps_e_n`` are unchanged (every Newton iteration of an increment)."""
+        key = self._cache.get("old_key")
+        if (key is not None and key[0].shape == ue_old.shape and key[1].shape == eps_e_n.shape
+                and np.array_equal(key[0], ue_old) and np.array_equal(key[1], eps_e_n)):
+            return self._cache["old"]
+        F_old, F33_old, _ = self._deformation(ue_old)
+        det_old = _det2(F_old)
+        bn2, bn33 = hencky_to_b(eps_e_n)
+        old = (_inv2(F_old, det_old), F33_old, (det_old <= 0) | (F33_old <= 0), bn2, bn33)
+        self._cache["old_key"] = (np.array(ue_old), np.array(eps_e_n))
+        self._cache["old"] = old
+        return old
+
     def _large_strain(self, ue_new, ue_old, state, law_state, tangent):
         ne, nq, na = len(self.conn), self.nq, self.nen
         F, F33, r = self._deformation(ue_new)
-        F_old, F33_old, _ = self._deformation(ue_old)
+        F_old_inv, F33_old, bad_old, bn2, bn33 = self._start_of_increment(ue_old,
+                                                                          law_state["eps_e"])
         det2 = _det2(F)
         J = det2 * F33
-        bad = ((det2 <= 0) | (F33 <= 0) | (_det2(F_old) <= 0) | (F33_old <= 0)).any(axis=1)
+        bad = ((det2 <= 0) | (F33 <= 0) | bad_old).any(axis=1)
         if bad.any():
             return self._failure(bad, "non-positive det F", state, tangent)
 
         # trial elastic left Cauchy-Green tensor and its Hencky strain
-        f2 = F @ _inv2(F_old)
+        f2 = F @ F_old_inv
         f33 = F33 / F33_old
-        bn2, bn33 = hencky_to_b(law_state["eps_e"])
         b2 = f2 @ bn2 @ np.swapaxes(f2, -1, -2)
         b33 = f33**2 * bn33
         if tangent:
@@ -339,11 +444,13 @@ def _weighted_force(B, s, w):
 def _weighted_product(A, D, B, w):
     """sum_q w A^T D B: (e, q, s, d), (e, q, s, t), (e, q, t, f), (e, q) -> (e, d, f).
 
-    Written as one batched matmul over the stacked (q, s) axis: much faster than einsum."""
+    ``w D B`` first (q small (s, t) @ (t, f) products), then one (d, q s) @ (q s, f) product
+    per element over the stacked (q, s) axis: much faster than einsum, and faster than
+    forming ``A^T D`` (measured 1.4 vs 2.2 us per Q8 element)."""
     ne, nq, ns, nd = A.shape
-    AD = (np.swapaxes(A, -1, -2) @ D) * w[..., None, None]           # (e, q, d, t)
-    AD = np.swapaxes(AD, 1, 2).reshape(ne, nd, nq * ns)
-    return AD @ B.reshape(ne, nq * ns, B.shape[-1])
+    DB = (D * w[..., None, None]) @ B                                   # (e, q, s, f)
+    At = np.swapaxes(A, 2, 3).transpose(0, 2, 1, 3).reshape(ne, nd, nq * ns)
+    return At @ DB.reshape(ne, nq * ns, B.shape[-1])
 
 
 def _vec_to_stress2(s: np.ndarray) -> np.ndarray:

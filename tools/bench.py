@@ -1,0 +1,491 @@
+"""Benchmarks of lagamine_py: scaling of press-then-slide, bulk/contact assembly, linear solvers,
+CLI start-up.  Timings are measured here, never asserted in tests (DESIGN.md §3).
+
+Sub-commands (run from the repository root, in the project's venv)::
+
+    python tools/bench.py scale --sizes 40x20 80x40 160x80 320x160 [--solver AUTO] [--json F]
+    python tools/bench.py one NX NY [--solver AUTO] [--json F]     # one size (scale runs this)
+    python tools/bench.py assembly [--nx 160 --ny 80]              # us per element / Gauss point
+    python tools/bench.py solvers [--sizes 20x10 40x20 ...]        # SPLU vs PARDISO crossover
+    python tools/bench.py startup                                   # lagamine-py --help
+    python tools/bench.py report --json F [--png P]                 # markdown table + plot
+
+``scale`` runs press-then-slide (``decks/press_slide.dat``) with the mesh refined: ``NX x NY`` Q8,
+the pressed element set and the penalties (``KP = KT = 20 E / h``, the deck's rule) adapted,
+written to a temporary deck; each size runs in its own process (peak memory per size) with the
+default writers into a temporary directory.  The time of a run is split by wrapping the
+methods that do the work (the solver code is not changed): bulk element groups, contact
+groups, pressure groups, scatter into the CSR pattern, reduction to the free DOFs,
+factorisation, solve, writers (VTK and the rest), and the rest of the step controller.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DECK = ROOT / "decks" / "press_slide.dat"
+E_STEEL = 210000.0
+
+
+# --------------------------------------------------------------------------------------------
+# press-then-slide at a chosen mesh size
+
+def press_slide_deck(nx: int, ny: int) -> str:
+    """Text of ``decks/press_slide.dat`` with an ``nx`` x ``ny`` mesh: the pressed range of the
+    top row (``*ELSET ... GENERATE``) scaled to the same fraction of the edge, and the penalties
+    ``KP = KT = 20 E / h`` (the deck's rule).  ``nx`` must be a multiple of the deck's NX / 4."""
+    text = DECK.read_text()
+    m = re.search(r"NX=(\d+), NY=(\d+)", text)
+    nx0, ny0 = int(m.group(1)), int(m.group(2))
+    text = text[:m.start()] + f"NX={nx}, NY={ny}" + text[m.end():]
+    g = re.search(r"(\*ELSET, ELSET=TOP_LOADED, GENERATE\s*\n)(\d+), (\d+), 1\n", text)
+    top0 = (ny0 - 1) * nx0
+    a, b = int(g.group(2)) - top0 - 1, int(g.group(3)) - top0      # columns [a, b) of the top row
+    if (a * nx) % nx0 or (b * nx) % nx0:
+        raise ValueError(f"NX={nx}: the pressed range {a}..{b} of {nx0} does not scale")
+    top = (ny - 1) * nx
+    text = (text[:g.end(1)] + f"{top + a * nx // nx0 + 1}, {top + b * nx // nx0}, 1\n"
+            + text[g.end():])
+    kp = 20 * E_STEEL / (40.0 / nx)
+    text, n = re.subn(r"KP=[0-9.eE+]+, KT=[0-9.eE+]+", f"KP={kp:.6g}, KT={kp:.6g}", text)
+    if n != 1:
+        raise RuntimeError("decks/press_slide.dat changed: update tools/bench.py's substitutions")
+    return text
+
+
+class Timers:
+    """Accumulated wall time and call counts per label."""
+
+    def __init__(self):
+        self.t = defaultdict(float)
+        self.n = defaultdict(int)
+
+    def wrap(self, obj, name: str, label: str):
+        fn = getattr(obj, name)
+
+        def timed(*a, **k):
+            t0 = time.perf_counter()
+            try:
+                return fn(*a, **k)
+            finally:
+                self.t[label] += time.perf_counter() - t0
+                self.n[label] += 1
+        setattr(obj, name, timed)
+
+
+class _Stop(Exception):
+    """Raised by the instrumented writer after ``max_increments`` increments."""
+
+
+def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
+            max_increments: int | None = None) -> dict:
+    """Run press-then-slide at ``nx`` x ``ny``; return the measurements (a JSON-able dict).
+
+    ``max_increments`` stops the run after that many converged increments (status
+    ``"truncated"``): the time per iteration is measured, not that the whole run converges."""
+    from lagamine_py.deck import load_deck
+    from lagamine_py.output import default_writers
+    from lagamine_py.solver import problem as problem_mod
+    from lagamine_py.solver import steps as steps_mod
+    from lagamine_py.solver.linear import FreeDofs
+
+    timers = Timers()
+    work = Path(keep) if keep else Path(tempfile.mkdtemp(prefix=f"bench_{nx}x{ny}_"))
+    work.mkdir(parents=True, exist_ok=True)
+    deck = work / f"press_slide_{nx}x{ny}.dat"
+    deck.write_text(press_slide_deck(nx, ny))
+    t0 = time.perf_counter()
+    model = load_deck(deck)
+    t_deck = time.perf_counter() - t0
+    for step in model.steps:
+        step.controls["SOLVER"] = solver
+    t0 = time.perf_counter()
+    problem = problem_mod.build_problem(model)
+    t_build = time.perf_counter() - t0
+
+    labels = {"solid": "bulk", "contact": "contact", "pressure": "pressure"}
+    for g, kind in zip(problem.groups, problem.kinds):
+        timers.wrap(g, "compute", labels[kind])
+    timers.wrap(problem.pattern, "assemble_data", "scatter")
+    timers.wrap(problem.pattern, "group_vector", "scatter")
+    orig_kff = FreeDofs.kff
+
+    def kff(self, data):
+        t = time.perf_counter()
+        out = orig_kff(self, data)
+        timers.t["reduce"] += time.perf_counter() - t
+        return out
+    FreeDofs.kff = kff
+    solvers = []
+    orig_make = steps_mod.make_solver
+
+    def make_solver(name):
+        s = orig_make(name)
+        timers.wrap(s, "factor", "factor")
+        timers.wrap(s, "solve", "solve")
+        solvers.append(s)
+        return s
+    steps_mod.make_solver = make_solver
+
+    writers = default_writers(work / "out", model)
+    for w in writers:
+        timers.wrap(w, "increment", "vtk" if type(w).__name__.lower().startswith("vtk")
+                    else "other_output")
+    if max_increments:
+        vtk = writers[0]
+        inner_inc = vtk.increment
+
+        def limited(result):
+            inner_inc(result)
+            if timers.n["vtk"] >= max_increments:
+                raise _Stop()
+        vtk.increment = limited
+    t0 = time.perf_counter()
+    try:
+        outcome = steps_mod.run(model, work / "out", writers=writers, problem=problem,
+                                deck_path=deck)
+        status, message = int(outcome.status), outcome.message
+    except _Stop:
+        status, message = "truncated", f"stopped after {max_increments} increments"
+    t_run = time.perf_counter() - t0
+    FreeDofs.kff = orig_kff
+    steps_mod.make_solver = orig_make
+
+    t = dict(timers.t)
+    iters = timers.n["factor"]
+    inner = sum(t.get(k, 0.0) for k in ("bulk", "contact", "pressure", "scatter", "reduce",
+                                         "factor", "solve", "vtk", "other_output"))
+    t["controller"] = t_run - inner
+    nel = int(sum(len(b.ids) for b in model.blocks))
+    cgroups = [g for g, kd in zip(problem.groups, problem.kinds) if kd == "contact"]
+    ncontact_gp = int(sum(getattr(g, "dofs").shape[0] for g in cgroups))
+    impl = [getattr(s, "impl", s) for s in solvers]
+    return {
+        "nx": nx, "ny": ny, "elements": nel, "dofs": int(problem.ndof),
+        "nnz": int(problem.pattern.nnz), "contact_elements": ncontact_gp,
+        "status": status, "message": message,
+        "increments": timers.n["vtk"], "iterations": iters,
+        "bulk_evaluations": timers.n["bulk"],
+        "solver": solver, "solver_used": sorted({type(s).__name__ for s in impl}),
+        "pardiso_analyses": int(sum(getattr(s, "analyses", 0) for s in impl)),
+        "t_deck": t_deck, "t_build": t_build, "t_run": t_run, "times": t,
+        "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "python": sys.version.split()[0], "numpy": np.__version__,
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# assembly micro-benchmark
+
+def structured_q8(nx: int, ny: int, lx: float = 40.0, ly: float = 20.0):
+    """Coordinates (n, 2) and Q8 connectivity (e, 8) of a structured nx x ny mesh."""
+    nxn, nyn = 2 * nx + 1, 2 * ny + 1
+    X, Y = np.meshgrid(np.linspace(0, lx, nxn), np.linspace(0, ly, nyn))
+    odd = (np.arange(nyn)[:, None] % 2 == 1) & (np.arange(nxn)[None, :] % 2 == 1)
+    keep = ~odd.ravel()
+    index = np.full(nxn * nyn, -1)
+    index[keep] = np.arange(keep.sum())
+    xy = np.c_[X.ravel(), Y.ravel()][keep]
+    I, J = np.meshgrid(2 * np.arange(nx), 2 * np.arange(ny))
+    I, J = I.ravel(), J.ravel()
+
+    def n(i, j):
+        return index[j * nxn + i]
+    conn = np.stack([n(I, J), n(I + 2, J), n(I + 2, J + 2), n(I, J + 2),
+                     n(I + 1, J), n(I + 2, J + 1), n(I + 1, J + 2), n(I, J + 1)], axis=1)
+    return xy, conn
+
+
+def _best(fn, repeat: int) -> float:
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def bench_assembly(nx: int = 160, ny: int = 80, repeat: int = 7) -> dict:
+    """Microseconds per element of the bulk Q8 3x3 Ramberg-Osgood group (compute with tangent,
+    then scatter into the CSR pattern), small strain and NLGEOM, every Gauss point plastic; and
+    microseconds per contact Gauss point of the press-slide contact group, pressed."""
+    from lagamine_py.elements.base import StepContext
+    from lagamine_py.registry import get
+    from lagamine_py.solver.pattern import Pattern
+
+    xy, conn = structured_q8(nx, ny)
+    law = get("laws", "RAMBERG_OSGOOD")(E=E_STEEL, NU=0.3, SIGMA0=250.0, ALPHA=0.5, N=10.0)
+    group = get("elements", "Q8PE")(np.arange(len(conn)), conn, xy, law, 1.0)
+    pattern = Pattern(2 * len(xy), [group.dofs])
+    state = group.init_state()
+    rng = np.random.default_rng(0)
+    u_old = np.zeros_like(xy)
+    u = np.c_[0.002 * xy[:, 0], -0.004 * xy[:, 1]] + 1e-4 * rng.standard_normal(xy.shape)
+    out = {"elements": len(conn), "dofs": 2 * len(xy)}
+    for nlgeom in (False, True):
+        ctx = StepContext(nlgeom=nlgeom, t_old=0.0, t_new=1.0, load_factor=1.0,
+                          foundation_old={}, foundation_new={})
+        res = group.compute(u, u_old, state, ctx, True)
+        plastic = float((res.state["peeq"] > 0).mean())
+        t_c = _best(lambda: group.compute(u, u_old, state, ctx, True), repeat)
+        t_s = _best(lambda: (pattern.assemble_data([res.K]), pattern.group_vector(0, res.f)),
+                    repeat)
+        key = "nlgeom" if nlgeom else "small"
+        out[key] = {"compute_us": 1e6 * t_c / len(conn), "scatter_us": 1e6 * t_s / len(conn),
+                    "total_us": 1e6 * (t_c + t_s) / len(conn), "plastic_fraction": plastic,
+                    "per_gauss_point_us": 1e6 * (t_c + t_s) / (len(conn) * group.nq)}
+    out["contact"] = _bench_contact(repeat)
+    return out
+
+
+def _bench_contact(repeat: int, nx: int = 320, ny: int = 4) -> dict:
+    """Contact group of press-slide (3 Gauss points per contact element), every point pressed
+    into the foundation and sliding: microseconds per contact Gauss point, with the scatter."""
+    from lagamine_py.deck import load_deck
+    from lagamine_py.elements.base import StepContext
+    from lagamine_py.solver.problem import build_problem
+
+    with tempfile.TemporaryDirectory() as tmp:
+        deck = Path(tmp) / "d.dat"
+        deck.write_text(press_slide_deck(nx, ny))
+        model = load_deck(deck)
+    problem = build_problem(model)
+    k = problem.kinds.index("contact")
+    g = problem.groups[k]
+    states = problem.init_states()
+    n = len(model.coords)
+    u_old = np.zeros((n, 2))
+    u = np.zeros((n, 2))
+    bottom = model.coords[:, 1] < 1e-9
+    u[bottom, 1] = -1e-4                       # pressed
+    u[bottom, 0] = 1e-3                        # and slid
+    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, load_factor=1.0,
+                      foundation_old={"FLAT": np.zeros(2)}, foundation_new={"FLAT": np.zeros(2)})
+    res = g.compute(u, u_old, states[k], ctx, True)
+    ngp = int(np.size(res.state.get("status", np.zeros(0))))
+    t_c = _best(lambda: g.compute(u, u_old, states[k], ctx, True), repeat)
+    t_s = _best(lambda: (problem.pattern.group_vector(k, res.f),
+                         problem.pattern.assemble_data([res.K if j == k else None
+                                                        for j in range(len(problem.groups))])),
+                repeat)
+    status = np.asarray(res.state.get("status")).ravel()
+    return {"contact_elements": len(g.dofs), "gauss_points": ngp,
+            "compute_us_per_gp": 1e6 * t_c / max(ngp, 1),
+            "total_us_per_gp": 1e6 * (t_c + t_s) / max(ngp, 1),
+            "status_counts": {int(s): int((status == s).sum()) for s in np.unique(status)}}
+
+
+# --------------------------------------------------------------------------------------------
+# linear solvers
+
+def bench_solvers(sizes, repeat: int = 5) -> list[dict]:
+    """Factor + solve times of SPLU and PARDISO on the press-slide tangent at each size
+    (tangent of the first iteration of the slide: contact, friction, non-symmetric), with the
+    PARDISO analysis done once beforehand (as in a Newton loop)."""
+    from lagamine_py.deck import load_deck
+    from lagamine_py.elements.base import StepContext
+    from lagamine_py.solver.linear import FreeDofs, PardisoSolver, SpluSolver, pardiso_available
+    from lagamine_py.solver.problem import build_problem
+
+    rows = []
+    for nx, ny in sizes:
+        with tempfile.TemporaryDirectory() as tmp:
+            deck = Path(tmp) / "d.dat"
+            deck.write_text(press_slide_deck(nx, ny))
+            model = load_deck(deck)
+        problem = build_problem(model)
+        n = len(model.coords)
+        u = np.zeros(2 * n)
+        bottom = np.flatnonzero(model.coords[:, 1] < 1e-9)
+        u[2 * bottom + 1] = -1e-4
+        u[2 * bottom] = 1e-3
+        problem.set_pressures({"PRESSED": 200.0})
+        ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, load_factor=1.0,
+                          foundation_old={"FLAT": np.zeros(2)}, foundation_new={"FLAT": np.zeros(2)})
+        ev = problem.evaluate(u, np.zeros(2 * n), problem.init_states(), ctx, True)
+        right = np.flatnonzero(model.coords[:, 0] > 40 - 1e-9)
+        free = FreeDofs(problem.pattern, 2 * right)
+        A = free.kff(ev.data)
+        b = np.random.default_rng(0).standard_normal(A.shape[0])
+        row = {"nx": nx, "ny": ny, "dofs": A.shape[0], "nnz": int(A.nnz)}
+        cands = [("SPLU", SpluSolver)] + ([("PARDISO", PardisoSolver)] if pardiso_available() else [])
+        x = {}
+        for name, cls in cands:
+            s = cls()
+            s.factor(A)
+            row[f"{name}_factor_s"] = _best(lambda: s.factor(A), repeat)
+            row[f"{name}_solve_s"] = _best(lambda: s.solve(b), repeat)
+            x[name] = s.solve(b)
+            if name == "PARDISO":
+                row["PARDISO_mode"] = "symmetric" if s.mtype == -2 else "non-symmetric"
+        if len(x) == 2:
+            row["rel_diff"] = float(np.abs(x["SPLU"] - x["PARDISO"]).max()
+                                    / np.abs(x["SPLU"]).max())
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return rows
+
+
+def bench_startup(repeat: int = 5) -> float:
+    """Best wall time of ``lagamine-py --help`` in a fresh interpreter."""
+    cmd = [sys.executable, "-m", "lagamine_py", "--help"]
+    return _best(lambda: subprocess.run(cmd, check=True, capture_output=True), repeat)
+
+
+# --------------------------------------------------------------------------------------------
+# report
+
+COLUMNS = ("bulk", "contact", "pressure", "scatter", "reduce", "factor", "solve", "vtk",
+           "other_output", "controller")
+
+
+def report(results: list[dict], png: Path | None) -> str:
+    """Markdown table (times in ms per Newton iteration) and, if ``png``, the log-log plot."""
+    head = ("| mesh | DOFs | status | incr. | Newton it. | " + " | ".join(COLUMNS)
+            + " | total/it | non-factor / factor | output / run | peak MB |")
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    for r in results:
+        it = max(r["iterations"], 1)
+        t = r["times"]
+        per = {c: 1e3 * t.get(c, 0.0) / it for c in COLUMNS}
+        fac = t.get("factor", 0.0)
+        nonfac = r["t_run"] - fac
+        out = t.get("vtk", 0.0) + t.get("other_output", 0.0)
+        lines.append(
+            f"| {r['nx']}x{r['ny']} | {r['dofs']} | {_status(r['status'])} "
+            f"| {r['increments']} | {r['iterations']} | "
+            + " | ".join(f"{per[c]:.1f}" for c in COLUMNS)
+            + f" | {1e3 * r['t_run'] / it:.1f} | {nonfac / fac if fac else float('nan'):.2f} "
+            f"| {out / r['t_run']:.2f} | {r['peak_rss_mb']:.0f} |")
+    if png is not None and results:
+        _plot(results, png)
+    return "\n".join(lines)
+
+
+def _status(status) -> str:
+    return {0: "converged", "truncated": "truncated"}.get(status, f"FAILED ({status})")
+
+
+def _plot(results, png: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    dofs = np.array([r["dofs"] for r in results], float)
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    groups = {"total": COLUMNS, "bulk assembly (+scatter)": ("bulk", "scatter"),
+              "contact": ("contact",), "factorisation": ("factor",), "solve": ("solve",),
+              "output": ("vtk", "other_output")}
+    for label, cols in groups.items():
+        y = np.array([sum(r["times"].get(c, 0.0) for c in cols) / max(r["iterations"], 1)
+                      for r in results])
+        if label == "total":
+            y = np.array([r["t_run"] / max(r["iterations"], 1) for r in results])
+        ax.loglog(dofs, 1e3 * y, "o-", label=label)
+    ax.set_xlabel("DOFs")
+    ax.set_ylabel("time per Newton iteration (ms)")
+    ax.set_title("press-then-slide, Q8 NLGEOM Ramberg-Osgood + Coulomb contact")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+
+
+# --------------------------------------------------------------------------------------------
+
+def _size(text: str) -> tuple[int, int]:
+    nx, ny = text.lower().split("x")
+    return int(nx), int(ny)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    p = sub.add_parser("scale")
+    p.add_argument("--sizes", nargs="+", type=_size,
+                   default=[(40, 20), (80, 40), (160, 80), (320, 160)])
+    p.add_argument("--solver", default="AUTO")
+    p.add_argument("--json", type=Path, default=Path("bench_scale.json"))
+    p.add_argument("--timeout", type=float, default=None, help="seconds per size")
+    p.add_argument("--max-increments", type=int, nargs="+", default=[0],
+                   help="per size (0: the whole run); one value applies to every size")
+    p = sub.add_parser("one")
+    p.add_argument("nx", type=int)
+    p.add_argument("ny", type=int)
+    p.add_argument("--solver", default="AUTO")
+    p.add_argument("--json", type=Path)
+    p.add_argument("--keep", help="work directory to keep (deck and output)")
+    p.add_argument("--max-increments", type=int)
+    p = sub.add_parser("assembly")
+    p.add_argument("--nx", type=int, default=160)
+    p.add_argument("--ny", type=int, default=80)
+    p = sub.add_parser("solvers")
+    p.add_argument("--sizes", nargs="+", type=_size,
+                   default=[(20, 10), (40, 20), (60, 30), (80, 40), (120, 60)])
+    sub.add_parser("startup")
+    p = sub.add_parser("report")
+    p.add_argument("--json", type=Path, nargs="+", required=True)
+    p.add_argument("--png", type=Path)
+    args = ap.parse_args(argv)
+
+    if args.cmd == "one":
+        res = run_one(args.nx, args.ny, args.solver, args.keep, args.max_increments)
+        text = json.dumps(res, indent=1)
+        if args.json:
+            args.json.write_text(text)
+        print(text)
+        return 0 if res["status"] in (0, "truncated") else 1
+    if args.cmd == "scale":
+        results = []
+        limits = args.max_increments * (len(args.sizes) if len(args.max_increments) == 1 else 1)
+        for (nx, ny), limit in zip(args.sizes, limits):
+            out = args.json.with_name(f"{args.json.stem}_{nx}x{ny}.json")
+            cmd = [sys.executable, __file__, "one", str(nx), str(ny), "--solver", args.solver,
+                   "--json", str(out)] + (["--max-increments", str(limit)] if limit else [])
+            print(f"== {nx}x{ny}: {' '.join(cmd)}", flush=True)
+            try:
+                subprocess.run(cmd, timeout=args.timeout, capture_output=True)
+            except subprocess.TimeoutExpired:
+                print(f"   {nx}x{ny}: timed out after {args.timeout} s", flush=True)
+                continue
+            if out.exists():
+                results.append(json.loads(out.read_text()))
+                print(report(results[-1:], None).splitlines()[-1], flush=True)
+        args.json.write_text(json.dumps(results, indent=1))
+        print(report(results, None))
+        return 0
+    if args.cmd == "assembly":
+        print(json.dumps(bench_assembly(args.nx, args.ny), indent=1))
+        return 0
+    if args.cmd == "solvers":
+        bench_solvers(args.sizes)
+        return 0
+    if args.cmd == "startup":
+        print(f"lagamine-py --help: {bench_startup():.3f} s (best of 5)")
+        return 0
+    if args.cmd == "report":
+        results = []
+        for f in args.json:
+            data = json.loads(f.read_text())
+            results.extend(data if isinstance(data, list) else [data])
+        results.sort(key=lambda r: r["dofs"])
+        print(report(results, args.png))
+        return 0
+    return 2
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("PYTHONHASHSEED", "0")
+    sys.exit(main())
