@@ -116,8 +116,9 @@ def test_registered_and_parameters_validated():
         Coulomb(KP=1.0, KT=10.0, PHI=0.1, HB=-10.0)
     with pytest.raises(ParamError, match="INDICATOR must be one of"):
         Coulomb(KP=1.0, KT=1.0, PHI=0.1, INDICATOR="ACTUAL")
-    with pytest.raises(NotImplementedError, match="SUBSTEPS=AUTO"):
-        Coulomb(KP=1.0, KT=1.0, PHI=0.1, SUBSTEPS="auto")
+    assert Coulomb(KP=1.0, KT=1.0, PHI=0.1, SUBSTEPS="auto").substeps == "AUTO"
+    with pytest.raises(ParamError, match="SUBTOL"):          # AUTO: tests/test_substeps_auto.py
+        Coulomb(KP=1.0, KT=1.0, PHI=0.1, SUBSTEPS="auto", SUBTOL=0.0)
 
 
 def test_flat_punch_penetration_is_p_over_kp():

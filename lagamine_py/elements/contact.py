@@ -67,7 +67,7 @@ import numpy as np
 from ..foundation import Foundation
 
 FAR = 1e30          # penetration handed to the law for a point whose line misses the foundation
-from ..laws.base import OPEN, ContactLaw
+from ..laws.base import OPEN, STICK, ContactLaw
 from .base import Group, GroupResult, StepContext
 from .shapes import gauss_1d, line_shape
 
@@ -331,6 +331,8 @@ class ContactGroup(Group):
             failure = f"contact {self.name}: degenerate face (zero Jacobian)"
         elif not (np.all(np.isfinite(f)) and np.all(np.isfinite(p)) and np.all(np.isfinite(tau))):
             failure = f"contact {self.name}: non-finite contact stresses"
+        else:
+            failure = self._inadmissible(st, ctx)
         K = None
         if tangent:
             Dvec = np.einsum("gi,gJ->giJ", Rt, D["p"]) - np.einsum("gi,gJ->giJ", t, D["tau"])
@@ -342,6 +344,23 @@ class ContactGroup(Group):
                 Kg = Kg + np.einsum("ga,gi,gJ->gaiJ", self._Ng, vec, Dwt)
             K = Kg.reshape(self.nf, self.nq, self.nd, self.nd).sum(axis=1)
         return GroupResult(f=f, K=K, state=st, failure=failure)
+
+    def _inadmissible(self, st, ctx) -> str | None:
+        """A failure message when the law reports points outside its yield cone
+        (``law.outside_cone(state)``, optional), except points held STICK by the solver."""
+        check = getattr(self.law, "outside_cone", None)
+        if not callable(check):
+            return None
+        bad = np.asarray(check(st), bool)
+        frozen = self._frozen(ctx)
+        if frozen is not None:
+            bad &= np.asarray(frozen) != STICK
+        if not bad.any():
+            return None
+        extra = (" (INDICATOR=CLASSICAL takes plastic loading for unloading under softening; "
+                 "use PREDICTOR)" if getattr(self.law, "indicator", "") == "CLASSICAL" else "")
+        return (f"contact {self.name}: {int(bad.sum())} point(s) end outside the friction cone "
+                f"|tau| <= B + phi p{extra}")
 
     # ------------------------------------------------------------------ output
     def points(self, u_new, state, ctx: StepContext):

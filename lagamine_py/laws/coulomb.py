@@ -64,7 +64,9 @@ forced by the shrinking cone is not lost; only then are ``p`` and ``tau`` zeroed
 ``INDICATOR=CLASSICAL`` replaces the predictor indicator, for points starting on the surface,
 by the classical one with the actual (plastic) rates of (10) at the start,
 ``dp df/dp + dtau df/dtau = H (sgn KT dv - phi dp) / (H + KT)``: it is 0 for perfect plasticity
-and has the wrong sign when softening (H < 0).  It exists only to show that failure.
+and has the wrong sign when softening (H < 0).  It exists only to show that failure, which
+is reported, not passed on: :meth:`Coulomb.outside_cone` finds the points that end outside
+the cone and the contact element fails the increment on them (cut-back, then exit 3).
 """
 from __future__ import annotations
 
@@ -77,6 +79,7 @@ __all__ = ["Coulomb"]
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 _ON_SURFACE_RTOL = 1e-10
+_ADMISSIBLE_RTOL = 1e-7    # |tau| beyond the cone by more than this (relative): an error
 
 
 def _kink(v0: float, slope: float) -> float:
@@ -215,6 +218,21 @@ class Coulomb(ContactLaw):
         tan = self._tangent(contact, sep, plastic, recon, partial, d, du, dv, frac, sig, dmat,
                             hmat, phi1)
         return new_state, tan
+
+    def outside_cone(self, state) -> np.ndarray:
+        """(g,) bool: points of ``state`` outside the yield cone, ``|tau| > B(lam) + phi(lam) p``
+        beyond round-off (relative to ``|tau|``, the radius and ``KT * 1e-12``).
+
+        The exact integration never leaves such a point; ``INDICATOR=CLASSICAL`` under softening
+        does (it takes plastic loading for unloading) and a frozen STICK point may.  The contact
+        element reports these points as a failure of the increment (the solver cuts back, then
+        stops with exit 3), so the wrong answer is never passed on silently."""
+        tau = np.asarray(state["tau"], float)
+        b, _ = self.adhesion(state["lam"])
+        phi, _ = self.friction(state["lam"])
+        radius = b + phi * np.asarray(state["p"], float)
+        scale = radius + np.abs(tau) + 1e-12 * self.kt
+        return np.abs(tau) - radius > _ADMISSIBLE_RTOL * scale
 
     def _loading(self, tau0, p0, p1, lam0, dv_c, tau_tr, contact):
         """Which points load plastically in this sub-interval, and sgn(tau) while they do.
