@@ -1,0 +1,429 @@
+"""Accuracy against CPU time: what each modelling choice buys and costs, measured.
+
+    python tools/accuracy_speed.py [-j 2] [--work DIR] [--scenes hertz,press_slide,cattaneo]
+
+runs the study decks of ``tools/study_decks/`` over mesh density, element (Q8, Q8 reduced, Q4),
+2 or 3 contact Gauss points, KP and KT, THETA, sub-intervals (fixed and AUTO), increment size
+and NLGEOM, and writes
+
+* ``docs/data/accuracy_<scene>.csv``: one row per run (parameters, status, CPU and wall time,
+  Newton iterations, error, and whether it is on the Pareto front);
+* ``docs/images/accuracy_<scene>.png``: error against CPU time, the Pareto front marked;
+* ``docs/data/accuracy_targets.csv``: per scene the cheapest run reaching 5 %, 1 %, 0.2 %.
+
+The runs go to ``--work`` (default ``/tmp/lagamine_accuracy``); a rerun reuses the runs that
+finished there (the sweep's ``point.json`` markers), so delete it to measure afresh.  Every
+point runs as its own ``lagamine-py run`` process (``lagamine_py.sweep``), ``-j`` at a time,
+BLAS pinned to one thread; CPU time is that of the process (``os.wait4``), start-up included.
+
+Error measures (the docstring of each ``*_error`` function says more):
+
+* Hertz (displacement-controlled, ``hertz_study.dat``): ``max(|a/a_H - 1|, |p0/p0_H - 1|)`` with
+  the half-width a and the peak pressure p0 fitted to the run's last contact pressures
+  (:func:`lagamine_py.checks.fit_hertz`) and a_H, p0_H the Hertz closed form at the force P the
+  run reached;
+* press-then-slide (``press_slide_study.dat``): ``max_t |T(t) - T_ref(t)| / (phi P_ref)`` over the
+  slide step, T the total tangential contact force, against a fine reference run of the same
+  scene (32 x 16 Q8, 3 Gauss points, dt = 0.025, THETA = 1/2, SUBSTEPS = AUTO);
+* Cattaneo-Mindlin (``decks/cattaneo_mindlin.dat``, its ``*CHECK, TYPE=CATTANEO`` error on the
+  stick half-width c): run only with ``--scenes cattaneo``.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ROOT / "tools" / "study_decks"
+DOCS = ROOT / "docs"
+TARGETS = (0.05, 0.01, 0.002)
+sys.path.insert(0, str(ROOT))
+
+from lagamine_py.checks import fit_hertz, hertz_closed_form  # noqa: E402
+from lagamine_py.results import read_table  # noqa: E402
+from lagamine_py.sweep import (PointDeckError, finished_row, load_point_checks,  # noqa: E402
+                               point_dirname, point_task, run_point)
+
+
+# ------------------------------------------------------------------ running points
+def run_points(deck: Path, points: list[dict[str, str]], workdir: Path, jobs: int,
+               log=print) -> list[dict]:
+    """Run the points ``jobs`` at a time (threads waiting on subprocesses); a point that
+    finished in ``workdir`` before is reused.  Rows are the sweep's, plus ``dir``."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    rows: list[dict | None] = []
+    todo = []
+    for p in points:                 # decks are read here, in this thread (registry loading)
+        pointdir = workdir / point_dirname(p)
+        row = finished_row(pointdir)
+        if row is None:
+            try:
+                todo.append((len(rows), p, pointdir, load_point_checks(deck, p)))
+            except PointDeckError as exc:
+                row = {"point": pointdir.name, **p, "status": 2, "reason": str(exc),
+                       "cpu_s": math.nan, "wall_s": math.nan, "newton_iterations": 0}
+        rows.append(None if row is None else {**row, "dir": pointdir})
+    runner = partial(run_point, threads=1)
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        futs = [(i, pool.submit(point_task, deck, p, d, c, runner), d) for i, p, d, c in todo]
+        for k, (i, fut, d) in enumerate(futs):
+            rows[i] = {**fut.result(), "dir": d}
+            log(f"  [{k + 1}/{len(futs)}] {d.name}: status {rows[i]['status']}, "
+                f"cpu {float(rows[i].get('cpu_s', math.nan)):.2f} s")
+    return rows
+
+
+def unique(points: list[dict[str, str]]) -> list[dict[str, str]]:
+    seen, out = set(), []
+    for p in points:
+        key = tuple(sorted(p.items()))
+        if key not in seen:
+            seen.add(key)
+            out.append(p)
+    return out
+
+
+def vary(base: dict[str, str], **axes) -> list[dict[str, str]]:
+    """One-at-a-time variations of ``base``; a value may be a dict of several parameters."""
+    pts = []
+    for name, values in axes.items():
+        for v in values:
+            p = dict(base)
+            p.update(v if isinstance(v, dict) else {name: str(v)})
+            pts.append(p)
+    return pts
+
+
+# ------------------------------------------------------------------ Pareto and targets
+def pareto(cost: np.ndarray, err: np.ndarray) -> np.ndarray:
+    """Mask of the points no other point beats in both cost and error (NaN never on it)."""
+    ok = np.isfinite(cost) & np.isfinite(err)
+    front = np.zeros(len(cost), bool)
+    order = np.lexsort((err, cost))
+    best = np.inf
+    for i in order:
+        if ok[i] and err[i] < best:
+            front[i] = True
+            best = err[i]
+    return front
+
+
+def cheapest(rows: list[dict], target: float) -> dict | None:
+    hits = [r for r in rows if r["status"] == 0 and r["error"] <= target]
+    return min(hits, key=lambda r: r["cpu_s"]) if hits else None
+
+
+# ------------------------------------------------------------------ Hertz
+HERTZ_R, HERTZ_E, HERTZ_NU = 10.0, 200000.0, 0.3
+
+
+def q4_split_mesh(src: Path, dst: Path) -> None:
+    """Write a Q4 version of a Q8 mesh file: each Q8 split into 2 x 2 Q4 through its mid-side
+    nodes and a centre node (the serendipity map at xi = eta = 0); faces split likewise."""
+    lines = src.read_text().splitlines()
+    nodes, elems, out, section = {}, {}, [], None
+    for ln in lines:
+        if ln.startswith("*"):
+            section = ln.split(",")[0].upper()
+        elif not ln.startswith("**") and section == "*NODE":
+            n, x, y = ln.split(",")
+            nodes[int(n)] = np.array([float(x), float(y)])
+        elif not ln.startswith("**") and section == "*ELEMENT":
+            v = [int(t) for t in ln.split(",")]
+            elems[v[0]] = v[1:]
+    nid = max(nodes) + 1
+    sub = {}
+    for e, (c1, c2, c3, c4, m5, m6, m7, m8) in sorted(elems.items()):
+        centre = (-0.25 * sum(nodes[c] for c in (c1, c2, c3, c4))
+                  + 0.5 * sum(nodes[m] for m in (m5, m6, m7, m8)))
+        nodes[nid] = centre
+        C = nid
+        nid += 1
+        base = 4 * (e - 1)
+        sub[base + 1] = (c1, m5, C, m8)
+        sub[base + 2] = (m5, c2, m6, C)
+        sub[base + 3] = (C, m6, c3, m7)
+        sub[base + 4] = (m8, C, m7, c4)
+    # Q8 face -> (sub-element offset, face) pairs
+    face_map = {1: ((1, 1), (2, 1)), 2: ((2, 2), (3, 2)), 3: ((3, 3), (4, 3)), 4: ((4, 4), (1, 4))}
+    section = None
+    for ln in lines:
+        if ln.startswith("*"):
+            section = ln.split(",")[0].upper()
+            if section == "*NODE":
+                out.append(ln)
+                out += [f"{n}, {x:.15g}, {y:.15g}" for n, (x, y) in sorted(nodes.items())]
+            elif section == "*ELEMENT":
+                out.append(ln)
+                out += [f"{k}, " + ", ".join(map(str, c)) for k, c in sorted(sub.items())]
+            else:
+                out.append(ln)
+        elif ln.startswith("**"):
+            out.append(ln)
+        elif section == "*SURFACE":
+            e, f = ln.split(",")
+            for off, face in face_map[int(f.strip()[1:])]:
+                out.append(f"{4 * (int(e) - 1) + off}, S{face}")
+        elif section in ("*NODE", "*ELEMENT"):
+            continue
+        else:
+            out.append(ln)
+    dst.write_text("\n".join(out) + "\n")
+
+
+def hertz_meshes() -> None:
+    mesh_dir = STUDY / "meshes"
+    mesh_dir.mkdir(exist_ok=True)
+    for tag in ("coarse", "medium", "fine"):
+        src = ROOT / "decks" / "meshes" / f"cylinder_quarter_{tag}.inp"
+        (mesh_dir / f"cylinder_quarter_{tag}_q8.inp").write_text(src.read_text())
+        q4_split_mesh(src, mesh_dir / f"cylinder_quarter_{tag}_q4.inp")
+
+
+def hertz_error(row: dict) -> dict:
+    """Fit a, p0 to the last increment's contact pressures; compare with Hertz at the reached
+    force P = 2 x (quarter's total normal force)."""
+    run = Path(row["dir"])
+    try:
+        pts = read_table(run / "contact.csv")
+        tot = read_table(run / "contact_totals.csv")
+    except (OSError, ValueError):
+        return {"error": math.nan}
+    inc = np.asarray(pts["increment"], float) + 1e6 * np.asarray(pts["step"], float)
+    last = inc == inc.max()
+    x = np.asarray(pts["x"], float)[last]
+    p = np.asarray(pts["p"], float)[last]
+    P = 2.0 * abs(float(np.asarray(tot["P"], float)[-1]))
+    a, p0 = fit_hertz(x, p)
+    a_h, p0_h = hertz_closed_form(P, HERTZ_R, HERTZ_E, HERTZ_NU)
+    ea, ep = abs(a / a_h - 1.0), abs(p0 / p0_h - 1.0)
+    return {"error": max(ea, ep), "err_a": ea, "err_p0": ep, "P": P, "a": a, "p0": p0}
+
+
+HERTZ_ELEM = {"Q8": {"ELEM": "q8", "ETYPE": "Q8PE"}, "Q8R": {"ELEM": "q8", "ETYPE": "Q8PER"},
+              "Q4": {"ELEM": "q4", "ETYPE": "Q4PE"}}
+
+
+HERTZ_BASE = {"MESH": "medium", "ELEM": "q8", "ETYPE": "Q8PE", "GAUSS": "3", "KP": "1e8",
+              "DT": "0.25", "NLGEOM": "NO", "DEPTH": "0.16"}
+
+
+def hertz_points() -> list[dict[str, str]]:
+    base = HERTZ_BASE
+    pts = []
+    for mesh in ("coarse", "medium", "fine"):
+        m = dict(base, MESH=mesh)
+        pts += vary(m, ELEM=list(HERTZ_ELEM.values()), GAUSS=(2, 3), NLGEOM=("NO", "YES"),
+                    DT=(1, 0.25))
+    pts += vary(base, KP=("1e6", "1e7", "1e9", "1e10"))
+    pts += vary(dict(base, MESH="coarse"), KP=("1e7", "1e9"))
+    pts += vary(dict(base, MESH="fine"), KP=("1e7", "1e9"))
+    pts += [dict(base, MESH="fine", KP="1e7", **HERTZ_ELEM[e]) for e in ("Q4", "Q8R")]
+    pts += [dict(base, MESH=m, KP="1e7", GAUSS="2", DT="1") for m in ("coarse", "medium", "fine")]
+    return unique(pts)
+
+
+# ------------------------------------------------------------------ press-then-slide
+PS_PHI = 0.2
+PS_REF = {"NX": "32", "NY": "16", "ETYPE": "Q8PE", "GAUSS": "3", "KP": "1.68e6",
+          "KT": "1.68e6", "THETA": "0.5", "SUBSTEPS": "AUTO", "DT": "0.025", "NLGEOM": "YES"}
+
+
+def ps_mesh(nx: int, ny: int) -> dict[str, str]:
+    """Mesh parameters, with the top-row elements under the pressure (left 3/4)."""
+    first = (ny - 1) * nx + 1
+    return {"NX": str(nx), "NY": str(ny), "L1": str(first), "L2": str(first + 3 * nx // 4 - 1)}
+
+
+def ps_history(run: Path) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """(t, T) over the slide step and P at its end, from contact_totals.csv."""
+    try:
+        tot = read_table(run / "contact_totals.csv")
+    except (OSError, ValueError):
+        return None
+    step = np.asarray(tot["step"], float)
+    t = np.asarray(tot["time"], float)[step == 2]
+    if t.size == 0:
+        return None
+    T = np.abs(np.asarray(tot["T"], float)[step == 2])
+    P = abs(float(np.asarray(tot["P"], float)[step == 2][-1]))
+    return np.concatenate([[1.0], t]), np.concatenate([[0.0], T]), P
+
+
+def ps_error(row: dict, ref: tuple) -> dict:
+    """max |T(t) - T_ref(t)| / (phi P_ref) on t in [1, 2] (both linearly interpolated)."""
+    h = ps_history(Path(row["dir"]))
+    if h is None or ref is None or row["status"] != 0:
+        return {"error": math.nan}
+    t, T, P = h
+    tr, Tr, Pr = ref
+    grid = np.linspace(1.0, 2.0, 201)
+    err = np.max(np.abs(np.interp(grid, t, T) - np.interp(grid, tr, Tr))) / (PS_PHI * Pr)
+    return {"error": float(err), "T_over_phiP": float(T[-1] / (PS_PHI * P))}
+
+
+def ps_points() -> list[dict[str, str]]:
+    base = {**ps_mesh(16, 8), "ETYPE": "Q8PE", "GAUSS": "3", "KP": "1.68e6", "KT": "1.68e6",
+            "THETA": "1", "SUBSTEPS": "1", "DT": "0.05", "NLGEOM": "YES"}
+    pts = vary(base, MESH=(ps_mesh(8, 4), ps_mesh(24, 12)), ETYPE=("Q4PE", "Q8PER"),
+               GAUSS=(2,), KP=({"KP": "1.68e5", "KT": "1.68e5"}, {"KP": "1.68e7", "KT": "1.68e7"}),
+               KT=("1.68e5", "1.68e7"), THETA=(0, 0.5), SUBSTEPS=(4, "AUTO"),
+               DT=(0.2, 0.0125), NLGEOM=("NO",))
+    pts += vary(dict(base, **ps_mesh(8, 4)), ETYPE=("Q4PE",), DT=(0.2,), NLGEOM=("NO",))
+    pts += [dict(base, **ps_mesh(8, 4), ETYPE="Q4PE", DT="0.2", NLGEOM="NO"),
+            dict(base, **ps_mesh(32, 16), ETYPE="Q4PE")]
+    return unique([base] + pts)
+
+
+# ------------------------------------------------------------------ output
+def label(params: dict[str, str], base: dict[str, str]) -> str:
+    diff = [f"{k}={v}" for k, v in params.items()
+            if base.get(k) != v and k not in ("L1", "L2", "ELEM")]
+    return " ".join(diff) or "baseline"
+
+
+def write_scene(scene: str, rows: list[dict], names: list[str], base: dict[str, str]) -> list[dict]:
+    cost = np.array([float(r.get("cpu_s", math.nan)) for r in rows])
+    err = np.array([float(r.get("error", math.nan)) if r["status"] == 0 else math.nan
+                    for r in rows])
+    front = pareto(cost, err)
+    for r, f in zip(rows, front):
+        r["pareto"] = bool(f)
+        r["label"] = label({k: r[k] for k in names}, base)
+    extra = [k for k in ("err_a", "err_p0", "P", "a", "p0", "T_over_phiP")
+             if any(k in r for r in rows)]
+    cols = (["label", *names, "status", "cpu_s", "wall_s", "newton_iterations", "increments",
+             "failed_attempts", "error", "pareto", *extra, "reason"])
+    (DOCS / "data").mkdir(parents=True, exist_ok=True)
+    with open(DOCS / "data" / f"accuracy_{scene}.csv", "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(cols)
+        for r in rows:
+            w.writerow([_cell(r.get(c, "")) for c in cols])
+    plot_scene(scene, rows, cost, err, front)
+    return rows
+
+
+def _cell(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def plot_scene(scene: str, rows, cost, err, front) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(9, 6))
+    ok = np.isfinite(err) & np.isfinite(cost)
+    floor = 1e-5
+    ax.loglog(cost[ok], np.maximum(err[ok], floor), "o", color="0.6", ms=5, label="runs")
+    fi = np.where(front)[0]
+    fi = fi[np.argsort(cost[fi])]
+    ax.loglog(cost[fi], np.maximum(err[fi], floor), "-o", color="C3", ms=7, label="Pareto front")
+    auto = [i for i, r in enumerate(rows) if r.get("SUBSTEPS") == "AUTO" and ok[i]]
+    if auto:
+        ax.loglog(cost[auto], np.maximum(err[auto], floor), "s", mfc="none", color="C0", ms=11,
+                  label="SUBSTEPS=AUTO")
+    for i in np.where(ok)[0]:
+        if front[i] or rows[i]["label"] == "baseline":
+            ax.annotate(rows[i]["label"], (cost[i], max(err[i], floor)), fontsize=7,
+                        xytext=(4, 3), textcoords="offset points")
+    failed = [i for i, r in enumerate(rows) if r["status"] != 0]
+    if failed:
+        ax.loglog(cost[failed], np.full(len(failed), floor), "x", color="k",
+                  label=f"did not finish ({len(failed)})")
+    for t in TARGETS:
+        ax.axhline(t, color="0.8", lw=0.8, ls="--")
+    ax.set_xlabel("CPU time of the run [s]")
+    ax.set_ylabel("relative error")
+    ax.set_title(f"{scene}: error against CPU time ({int(ok.sum())} runs)")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    (DOCS / "images").mkdir(parents=True, exist_ok=True)
+    fig.savefig(DOCS / "images" / f"accuracy_{scene}.png", dpi=110)
+    plt.close(fig)
+
+
+def write_targets(all_rows: dict[str, list[dict]]) -> None:
+    with open(DOCS / "data" / "accuracy_targets.csv", "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(["scene", "target", "configuration", "error", "cpu_s"])
+        for scene, rows in all_rows.items():
+            for t in TARGETS:
+                best = cheapest(rows, t)
+                if best is None:
+                    w.writerow([scene, t, "none reached it", "", ""])
+                else:
+                    w.writerow([scene, t, best["label"], f"{best['error']:.4g}",
+                                f"{best['cpu_s']:.3g}"])
+
+
+# ------------------------------------------------------------------ main
+def scene_hertz(work: Path, jobs: int) -> list[dict]:
+    hertz_meshes()
+    pts = hertz_points()
+    print(f"hertz: {len(pts)} runs")
+    rows = run_points(STUDY / "hertz_study.dat", pts, work / "hertz", jobs)
+    for r in rows:
+        r.update(hertz_error(r) if r["status"] == 0 else {"error": math.nan})
+    names = ["MESH", "ELEM", "ETYPE", "GAUSS", "KP", "DT", "NLGEOM", "DEPTH"]
+    return write_scene("hertz", rows, names, HERTZ_BASE)
+
+
+def scene_press_slide(work: Path, jobs: int) -> list[dict]:
+    ref_params = {**PS_REF, **ps_mesh(32, 16)}
+    pts = ps_points()
+    print(f"press_slide: reference + {len(pts)} runs")
+    deck = STUDY / "press_slide_study.dat"
+    ref_row = run_points(deck, [ref_params], work / "press_slide_ref", 1)[0]
+    ref = ps_history(Path(ref_row["dir"])) if ref_row["status"] == 0 else None
+    if ref is None:
+        print("press_slide: the reference run failed; errors are NaN", file=sys.stderr)
+    rows = run_points(deck, pts, work / "press_slide", jobs)
+    for r in rows:
+        r.update(ps_error(r, ref))
+    names = ["NX", "NY", "L1", "L2", "ETYPE", "GAUSS", "KP", "KT", "THETA", "SUBSTEPS", "DT",
+             "NLGEOM"]
+    return write_scene("press_slide", rows, names, pts[0])
+
+
+def scene_cattaneo(work: Path, jobs: int) -> list[dict]:
+    pts = [{"MESH": m, "ETYPE": "Q8PER"} for m in ("coarse", "medium", "fine")]
+    rows = run_points(ROOT / "decks" / "cattaneo_mindlin.dat", pts, work / "cattaneo", jobs)
+    for r in rows:
+        r["error"] = float(r.get("STICK_error", math.nan)) if r["status"] == 0 else math.nan
+    return write_scene("cattaneo", rows, ["MESH", "ETYPE"], pts[1])
+
+
+SCENES = {"hertz": scene_hertz, "press_slide": scene_press_slide, "cattaneo": scene_cattaneo}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("-j", "--jobs", type=int, default=2)
+    ap.add_argument("--work", type=Path, default=Path("/tmp/lagamine_accuracy"))
+    ap.add_argument("--scenes", default="hertz,press_slide")
+    args = ap.parse_args(argv)
+    all_rows = {}
+    for scene in args.scenes.split(","):
+        all_rows[scene] = SCENES[scene](args.work, args.jobs)
+    write_targets(all_rows)
+    for scene, rows in all_rows.items():
+        for t in TARGETS:
+            best = cheapest(rows, t)
+            print(f"{scene}: {t:.1%}: " + (f"{best['label']} ({best['error']:.3g}, "
+                                          f"{best['cpu_s']:.2f} s CPU)" if best else "none"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
