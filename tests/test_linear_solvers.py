@@ -53,8 +53,14 @@ def tangents():
     bottom = np.flatnonzero(xy[:, 1] < 1e-9)
     free_sym = FreeDofs(problem.pattern, np.concatenate([2 * bottom, 2 * bottom + 1]))
     sym = free_sym.kff(data)
+    # unloaded, held at one node only: free to rotate (an exact zero-energy mode)
+    res0 = problem.groups[k].compute(np.zeros((n, 2)), np.zeros((n, 2)), states[k],
+                                     StepContext(nlgeom=False), True)
+    data0 = problem.pattern.assemble_data([res0.K if j == k else None
+                                           for j in range(len(problem.groups))])
+    floating = FreeDofs(problem.pattern, np.array([0, 1])).kff(data0)
     b = np.random.default_rng(0).standard_normal(nonsym.shape[0])
-    return {"nonsym": nonsym, "sym": sym, "b": b}
+    return {"nonsym": nonsym, "sym": sym, "floating": floating, "b": b}
 
 
 def _rel_residual(A, x, b):
@@ -138,6 +144,17 @@ def test_pardiso_switches_mode_with_symmetry(tangents):
     p_forced = linear.PardisoSolver(symmetric=False)
     p_forced.factor(S)
     assert p_forced.mtype == 11
+
+
+@pytest.mark.parametrize("solver", ["SPLU", pytest.param("PARDISO", marks=needs_pardiso)])
+def test_singular_tangent_is_reported(tangents, solver):
+    """A body held at one node only can rotate: its tangent is singular.  SPLU sees a zero
+    pivot; PARDISO perturbs the pivot and is caught by the residual of its solve."""
+    A = tangents["floating"]
+    s = make_solver(solver)
+    with pytest.raises(SingularMatrixError):
+        s.factor(A)
+        s.solve(np.ones(A.shape[0]))
 
 
 @needs_pardiso

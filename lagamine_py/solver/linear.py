@@ -10,8 +10,10 @@ has nothing to do with the stiffness (they blur the pivot-based singularity diag
 the first iteration, so boundary elements are not distorted alone by a jump of their nodes.
 
 Solvers: ``SPLU`` (SuperLU with the ``MMD_AT_PLUS_A`` ordering), ``PARDISO`` (MKL through
-``pypardiso``, registered only when it imports), ``AUTO`` (PARDISO above ~15k DOFs when available,
-SPLU otherwise).  The default COLAMD ``spsolve`` is never used (4-17x slower on these matrices).
+``pypardiso``, registered only when it imports), ``AUTO`` (PARDISO above 5k DOFs when available,
+SPLU otherwise: with its analysis reused PARDISO is faster from 3-5k DOFs on press-slide
+tangents, see ``docs/performance.md``; below, SPLU costs milliseconds and names the unrestrained
+DOFs of a singular tangent by its pivots).  The default COLAMD ``spsolve`` is never used (4-17x slower on these matrices).
 """
 from __future__ import annotations
 
@@ -24,8 +26,9 @@ import scipy.sparse.linalg as spla
 
 from ..registry import register
 
-AUTO_PARDISO_DOFS = 15_000
+AUTO_PARDISO_DOFS = 5_000     # measured crossover, see docs/performance.md
 PIVOT_RTOL = 1e-12          # |pivot| below this times max |K_ii| counts as zero
+SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a singular A
 
 
 class SingularMatrixError(ArithmeticError):
@@ -330,6 +333,12 @@ class PardisoSolver(LinearSolver):
             raise SingularMatrixError(_suspects(self._A), f"PARDISO: {exc}") from None
         if not np.all(np.isfinite(x)):
             raise SingularMatrixError(_suspects(self._A), "PARDISO returned a non-finite solution")
+        # PARDISO perturbs zero pivots instead of failing: a singular matrix comes back
+        # "solved" with a large residual.  One product with A (cheap next to the factor) tells.
+        bnorm = np.linalg.norm(b)
+        if np.linalg.norm(self._A @ x - b) > SOLVE_RTOL * bnorm:
+            raise SingularMatrixError(_suspects(self._A), "PARDISO: residual of the solve too "
+                                      "large (perturbed zero pivots)")
         return x
 
 
@@ -345,7 +354,7 @@ if pardiso_available():
 
 @register("solvers", "AUTO")
 class AutoSolver(LinearSolver):
-    """PARDISO above ~15k DOFs when pypardiso is installed, SPLU otherwise."""
+    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise."""
 
     params = ()
 
