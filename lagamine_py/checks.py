@@ -10,12 +10,13 @@ Each check type is a function ``f(params, run) -> dict`` registered in :data:`CH
 :func:`register_check`; it returns ``measured`` and ``closed_form`` values (same keys where they
 compare), the relative ``errors`` per quantity and the headline ``error``.  Types:
 
-``HERTZ`` (``P, R, E, NU``, ``SYMMETRY=1|2``, optional ``X0``)
+``HERTZ`` (``R, E, NU``, ``SYMMETRY=1|2``, optional ``P``, ``X0``)
     Last increment of ``contact.csv``.  The least-squares fit of ``p^2 = p0^2 (1 - x^2/a^2)``
     over the points with ``p > 0``, ``x`` measured from the initial contact point (``X0`` if
     given; else 0 with ``SYMMETRY=2``, where the symmetry axis holds the contact point; else the
-    ``x`` of the point with the largest ``p``) gives ``a`` and ``p0``.  Closed form (Johnson §4.2)
-    ``a = sqrt(4 P R (1 - nu^2) / (pi E))``, ``p0 = 2 P / (pi a)``.  ``error`` = max of the two
+    centroid ``sum x p / sum p`` of the pressure) gives ``a`` and ``p0``.  Closed form (Johnson
+    §4.2) ``a = sqrt(4 P R (1 - nu^2) / (pi E))``, ``p0 = 2 P / (pi a)``, at ``P`` if given, else
+    at the measured force (a deck driven by displacement).  ``error`` = max of the two
     relative errors.  Reported as well: ``a_moment`` (from the second moment of ``p``,
     ``a^2 = 4 int x^2 p / int p``, trapezoid over the points: a cross-check, not in ``error``)
     and the total normal force ``P`` (``SYMMETRY`` times the model's, from contact_totals.csv).
@@ -218,26 +219,36 @@ def _moment_half_width(x: np.ndarray, p: np.ndarray) -> float:
 
 
 def _centre(params: dict[str, Any], x: np.ndarray, p: np.ndarray) -> float:
+    """``X0``; 0 with ``SYMMETRY=2``; else the centroid of the pressure ``sum x p / sum p`` (the
+    Hertz and Cattaneo pressures are even about the centre; the largest ``p`` is not a safe
+    centre, a penalty contact may peak anywhere near the top of the profile)."""
     if "X0" in params:
         return _num(params, "X0")
     if _num(params, "SYMMETRY", 1.0) == 2.0:
         return 0.0
-    return float(x[np.argmax(p)])
+    w = np.clip(p, 0.0, None)
+    return float(np.sum(x * w) / np.sum(w)) if np.sum(w) > 0 else float(x[np.argmax(p)])
 
 
 @register_check("HERTZ")
 def check_hertz(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
-    P, R, E, nu = (_num(params, k) for k in ("P", "R", "E", "NU"))
+    R, E, nu = (_num(params, k) for k in ("R", "E", "NU"))
     sym = _num(params, "SYMMETRY", 1.0)
     pts = _last_increment(_table(run, "contact.csv", ("x", "p")))
     x, p = pts["x"].astype(float), pts["p"].astype(float)
     xc = x - _centre(params, x, p)
     a, p0 = fit_hertz(xc, p)
-    a_cf, p0_cf = hertz_closed_form(P, R, E, nu)
     measured = {"a": a, "p0": p0, "a_moment": _moment_half_width(xc, p)}
     totals = run.table("contact_totals.csv")
     if totals and len(totals.get("P", ())):
         measured["P"] = sym * abs(float(_last_increment(_one_contact(totals, params))["P"][-1]))
+    if "P" in params:
+        P = _num(params, "P")
+    elif "P" in measured:
+        P = measured["P"]       # displacement-driven: the closed form at the force reached
+    else:
+        raise CheckError("no P given and contact_totals.csv has no P column")
+    a_cf, p0_cf = hertz_closed_form(P, R, E, nu)
     return _result(measured, {"a": a_cf, "p0": p0_cf, "a_moment": a_cf, "P": P},
                    {"a": _rel(a, a_cf), "p0": _rel(p0, p0_cf)})
 

@@ -27,12 +27,14 @@ from typing import Any
 
 import numpy as np
 
+from ..laws.base import SLIP, STICK
 from .linear import SingularMatrixError
 
 log = logging.getLogger("lagamine_py.solver")
 
 DIVERGED_REL = 1e10          # a relative residual above this is a blow-up
 FLOOR_FRACTION = 1e-6        # floor of the force scale, times the largest earlier scale
+_SLIP_NEG = 3                # flip-flop state code of a point slipping with tau < 0
 
 
 class ConvergenceFailure(Exception):
@@ -56,6 +58,11 @@ class DivergingResidual(ConvergenceFailure):
 
 class NotANumber(ConvergenceFailure):
     reason = "NaN"
+
+
+class ContactNotSettled(ConvergenceFailure):
+    """Frozen contact points (flip-flop control) disagree with the contact law at convergence."""
+    reason = "contact status did not settle"
 
 
 class GroupFailure(ConvergenceFailure):
@@ -112,6 +119,9 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     """
     c = free.constrained
     u = np.array(u_old, float)
+    shift = _foundation_shift(ctx, u.size)
+    if shift is not None:
+        u += shift        # start translated with a moving foundation (see _foundation_shift)
     du_imposed = np.zeros_like(u)
     du_imposed[c] = u_c - u[c]
     imposing = bool(np.any(du_imposed[c] != 0.0))
@@ -130,8 +140,14 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
         if not np.isfinite(rel):
             raise NotANumber(f"non-finite residual at iteration {k}", history)
         if not imposing and rel <= settings.rtol:
-            log.info("    iter %2d  |R|/F = %.3e  converged", k, rel)
-            return Converged(u, ev.states, ev.f_int, k, rel, scale, history)
+            if not tracker.active:
+                log.info("    iter %2d  |R|/F = %.3e  converged", k, rel)
+                return Converged(u, ev.states, ev.f_int, k, rel, scale, history)
+            done, ev, ctx_k = _unfrozen(problem, tracker, u, u_old, states, ctx, f_ext, free,
+                                        scale, settings.rtol, history, k)
+            if done is not None:
+                return done
+            continue
         if k == settings.maxit:
             raise IterationLimit(f"no convergence in {settings.maxit} iterations "
                                  f"(|R|/F = {rel:.3e})", history)
@@ -154,8 +170,16 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
             R = ev.f_int - f_ext
             rel = float(np.linalg.norm(R[free.free])) / scale
             history.append(rel)
-            log.info("    iter %2d  |R|/F = %.3e  converged (energy)", k + 1, rel)
-            return Converged(u, ev.states, ev.f_int, k + 1, rel, scale, history)
+            if not tracker.active:
+                log.info("    iter %2d  |R|/F = %.3e  converged (energy)", k + 1, rel)
+                return Converged(u, ev.states, ev.f_int, k + 1, rel, scale, history)
+            # frozen points: the free law must give the same (energy-converged) residual
+            done, ev, ctx_k = _unfrozen(problem, tracker, u, u_old, states, ctx, f_ext, free,
+                                        scale, max(settings.rtol, rel * (1.0 + 1e-6)), history,
+                                        k + 1)
+            if done is not None:
+                return done
+            continue
         ctx_k = tracker.context(ctx, ev.states)
         if settings.linesearch and not imposing:
             u, ev = _line_search(problem, u, du, u_old, states, ctx_k, f_ext, free, rhs, du_f)
@@ -165,6 +189,53 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
         imposing = False
         du_imposed[:] = 0.0
     raise AssertionError("unreachable")
+
+
+def _foundation_shift(ctx, ndof: int) -> np.ndarray | None:
+    """(ndof,) rigid translation ``T`` of every node by the foundations' motion over the
+    increment, when they all move by the same nonzero ``dc`` (else None): the first iterate.
+
+    Contact, solid and pressure forces are invariant under a common translation of body and
+    foundation (exactly in plane strain, and along the axis in axisymmetry), so at
+    ``u_old + T`` every group is in its converged state again: the first iteration is the
+    usual predictor from the converged state and its tangent (stick where the body stuck),
+    the motion entering through the imposed DOFs, which now move by ``u_c - u_old_c - T_c``.
+    Starting from ``u_old`` instead puts a tangential trial ``KT dc`` on every stuck point,
+    all of them slipping at once, the whole interface then slipping back and forth over the
+    iterations (the Cattaneo-Mindlin stall)."""
+    old, new = getattr(ctx, "foundation_old", None), getattr(ctx, "foundation_new", None)
+    if not old or not new or set(old) != set(new):
+        return None
+    steps = [np.asarray(new[n], float) - np.asarray(old[n], float) for n in new]
+    dc = steps[0]
+    if not np.any(dc != 0.0) or any(np.any(s_ != dc) for s_ in steps[1:]) or ndof % 2:
+        return None
+    return np.tile(dc, ndof // 2)
+
+
+def _unfrozen(problem, tracker, u, u_old, states, ctx, f_ext, free, scale, tol, history, k):
+    """Acceptance of a solve converged with frozen contact points: the free law (no freezing)
+    evaluated at ``u`` must satisfy the tolerance too, else the frozen status was wrong.
+
+    Returns ``(Converged | None, ev, ctx_k)``: the accepted result, with the free law's states;
+    or None with the evaluation and context to iterate on (the disagreeing points held in the
+    free law's status, :meth:`_FlipFlop.settle`).  Raises :class:`ContactNotSettled` when the
+    contact state cannot settle."""
+    ev = problem.evaluate(u, u_old, states, ctx, True)
+    rel = float(np.linalg.norm((ev.f_int - f_ext)[free.free])) / scale
+    if rel <= tol:
+        history[-1] = rel           # the same iterate u: its residual with the states accepted
+        log.info("    iter %2d  |R|/F = %.3e  converged (frozen contact points agree with the "
+                 "free law)", k, rel)
+        return Converged(u, ev.states, ev.f_int, k, rel, scale, history), ev, ctx
+    log.info("    iter %2d  frozen contact points disagree with the free law (|R|/F = %.3e)",
+             k, rel)
+    ctx_k = tracker.settle(ctx, ev.states)
+    if ctx_k is None:
+        raise ContactNotSettled(f"the contact status did not settle: frozen points disagree with "
+                                f"the law at convergence (|R|/F = {rel:.3e} with the free law)",
+                                history + [rel])
+    return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
 
 def _linear_solve(solver, free, data, rhs):
@@ -209,11 +280,25 @@ def _line_search(problem, u, du, u_old, states, ctx, f_ext, free, rhs, du_f, tri
 
 
 class _FlipFlop:
-    """Counts the status switches of contact points over the iterations of one increment and
-    freezes the points that switched ``limit`` times.
+    """Watches the contact status of every point over the iterations of one increment and
+    freezes the points that chatter.
+
+    A point's *state* is its status with the direction of slip: open, stick, slip+ or slip-
+    (a point slipping one way at one iteration and the other way at the next has the zero
+    tangential stiffness of sliding on both sides of the answer, so Newton jumps over the
+    narrow elastic range in between for ever: the status alone does not change).  After
+    ``limit`` state changes a point is frozen: in STICK when it has slipped both ways (the
+    only state left between the two), else in its current status.  A frozen SLIP point that
+    still reverses is re-frozen in STICK.
+
+    Freezing changes the law Newton solves, so a converged increment is accepted only if the
+    free law agrees (:meth:`settle`); where it does not, the points concerned take the free
+    law's status and Newton goes on, at most ``max_rounds`` times.
 
     ``ctx.freeze_contact`` becomes ``{group_name: (g,) int8}`` with -1 for free points and the
     status to hold otherwise (None while nothing is frozen)."""
+
+    max_rounds = 2
 
     def __init__(self, problem, limit: int):
         self.limit = limit
@@ -222,9 +307,17 @@ class _FlipFlop:
         self.watched = None if kinds is None else {k for k, kd in enumerate(kinds) if kd == "contact"}
         self.last: dict[int, np.ndarray] = {}
         self.count: dict[int, np.ndarray] = {}
+        self.both_ways: dict[int, np.ndarray] = {}
         self.frozen: dict[int, np.ndarray] = {}
+        self.rounds = 0
 
-    def context(self, ctx, states):
+    @property
+    def active(self) -> bool:
+        return bool(self.frozen)
+
+    def _states(self, states):
+        """(group index, status (g,), state code (g,)) of the watched groups: code = status,
+        or ``_SLIP_NEG`` for a point slipping with tau < 0."""
         for k, st in enumerate(states):
             if self.watched is not None and k not in self.watched:
                 continue
@@ -232,16 +325,49 @@ class _FlipFlop:
             if status is None:
                 continue
             status = np.asarray(status).ravel()
-            if k in self.last and self.last[k].shape == status.shape:
-                self.count[k] = self.count.get(k, 0) + (status != self.last[k])
-                hit = (self.count[k] >= self.limit)
+            tau = st.get("tau")
+            code = status.astype(np.int8)
+            if tau is not None and np.shape(tau) == status.shape:
+                code = np.where((status == SLIP) & (np.asarray(tau).ravel() < 0.0), _SLIP_NEG, code)
+            yield k, status, code.astype(np.int8)
+
+    def context(self, ctx, states):
+        """Update the counts with the states of the last evaluation; the context of the next."""
+        for k, status, code in self._states(states):
+            if k in self.last and self.last[k].shape == code.shape:
+                prev = self.last[k]
+                switched = code != prev
+                self.count[k] = self.count.get(k, 0) + switched
+                reversal = switched & np.isin(code, (SLIP, _SLIP_NEG)) & np.isin(prev, (SLIP, _SLIP_NEG))
+                self.both_ways[k] = self.both_ways.get(k, np.zeros(code.shape, bool)) | reversal
+                fz = self.frozen.get(k)
+                if fz is not None:               # a frozen slipping point that still reverses
+                    fz[(fz == SLIP) & reversal] = STICK
+                hit = self.count[k] >= self.limit
                 if hit.any():
-                    fz = self.frozen.setdefault(k, np.full(status.shape, -1, np.int8))
+                    fz = self.frozen.setdefault(k, np.full(code.shape, -1, np.int8))
                     newly = hit & (fz < 0)
-                    fz[newly] = status[newly]
-            self.last[k] = status.copy()
+                    fz[newly] = np.where(self.both_ways[k][newly], STICK, status[newly])
+            self.last[k] = code.copy()
+        return self._with_frozen(ctx)
+
+    def _with_frozen(self, ctx):
         if not self.frozen:
             return ctx
         name = (lambda k: self.names[k]) if self.names else str
         return dataclasses.replace(ctx, freeze_contact={name(k): v.copy()
                                                         for k, v in self.frozen.items()})
+
+    def settle(self, ctx, free_states) -> Any:
+        """After a converged solve with frozen points whose free-law evaluation does not converge:
+        give the frozen points where the free law disagrees the free law's status (held) and
+        return the context for more iterations; None when ``max_rounds`` are used up."""
+        self.rounds += 1
+        if self.rounds > self.max_rounds:
+            return None
+        for k, status, _ in self._states(free_states):
+            fz = self.frozen.get(k)
+            if fz is not None:
+                wrong = (fz >= 0) & (fz != status)
+                fz[wrong] = status[wrong]
+        return self._with_frozen(ctx)
