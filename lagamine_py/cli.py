@@ -49,6 +49,12 @@ def _parser() -> argparse.ArgumentParser:
     plot = sub.add_parser("plot", help="PNG charts of a run (p and tau along the interface, forces, mesh)")
     plot.add_argument("run", type=Path)
     plot.add_argument("-o", "--output", type=Path, help="directory for the PNG files (default RUN/plots)")
+    plot.add_argument("--states", metavar="LIST",
+                      help="states to draw: comma-separated STEP:INC, STEP (end of the step) or @TIME "
+                           "(default: end of each step and thirds of the last step)")
+    plot.add_argument("--axes", choices=("auto", "xy", "rz"), default="auto",
+                      help="rz draws z horizontal and r vertical (default: rz when the run's deck is "
+                           "axisymmetric)")
 
     sweep = sub.add_parser("sweep", help="run a deck over a grid of *PARAMETER values")
     sweep.add_argument("deck", type=Path)
@@ -152,7 +158,7 @@ def _cmd_compare(args) -> int:
 
 def _cmd_plot(args) -> int:
     from .plot import plot_run
-    return plot_run(args.run, args.output)
+    return plot_run(args.run, args.output, args.states, args.axes)
 
 
 def _cmd_sweep(args) -> int:

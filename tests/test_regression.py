@@ -59,7 +59,8 @@ def tolerances(ref: Path) -> dict[str, tuple[float, float | None]]:
 def test_every_deck_has_a_reference_with_provenance():
     assert DECKS, "no deck found in decks/"
     missing = [d.stem for d in DECKS if not (REFERENCE / d.stem).is_dir()]
-    assert not missing, f"no reference folder for {missing}: run python tools/make_references.py {' '.join(missing)}"
+    assert not missing, (f"no reference folder for {missing}: "
+                         f"run python tools/make_references.py {' '.join(missing)}")
     for d in DECKS:
         prov = (REFERENCE / d.stem / "PROVENANCE").read_text().strip().splitlines()
         assert len(prov) == 1 and prov[0].startswith("produced by `python tools/make_references.py"), d.stem

@@ -1,0 +1,183 @@
+"""``lagamine-py plot``: the choice of states, and the pictures of a real (small) run.
+
+The PNG files are checked by reading their bytes (signature, IHDR size) and by Pillow (a decoder
+independent of matplotlib's writer): present, valid, of a sensible size, and not blank.
+"""
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lagamine_py.cli import main as cli_main
+from lagamine_py.plot import chosen_states, is_axisymmetric, plot_run
+from runner import DECKS, run_deck
+
+SMALL = """*HEADING
+small press then slide: 8 x 4 Ramberg-Osgood block on a rigid flat
+*MESH, NAME=B, TYPE=Q8PE, X0=0, Y0=0, LX=8, LY=4, NX=4, NY=2
+*MATERIAL, NAME=S, LAW=RAMBERG_OSGOOD
+E=210000, NU=0.3, SIGMA0=250, ALPHA=0.5, N=10
+*SOLID, ELSET=B, MATERIAL=S
+*FOUNDATION, NAME=F
+-10, 0
+5, 0
+20, 0
+*CONTACT LAW, NAME=C, TYPE=COULOMB
+KP=1e6, KT=1e6, PHI=0.2
+*CONTACT, SURFACE=B_BOTTOM, FOUNDATION=F, LAW=C
+*STEP, NAME=PRESS, NLGEOM=YES
+*STATIC
+0.5, 1, 1e-3, 0.5
+*DLOAD
+B_TOP, P, 200
+*END STEP
+*STEP, NAME=SLIDE, NLGEOM=YES
+*STATIC
+0.25, 1, 1e-3, 0.25
+*BOUNDARY
+B_RIGHT, 1, 1, -0.002
+*END STEP
+"""
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    """(width, height) from the IHDR chunk; asserts the PNG signature and chunk type."""
+    head = Path(path).read_bytes()[:24]
+    assert head[:8] == PNG_SIGNATURE, f"{path} is not a PNG"
+    assert head[12:16] == b"IHDR"
+    return struct.unpack(">II", head[16:24])
+
+
+def check_png(path: Path) -> tuple[int, int]:
+    from PIL import Image
+    w, h = png_size(path)
+    assert 300 <= w <= 4000 and 200 <= h <= 4000, (path.name, w, h)
+    with Image.open(path) as im:
+        im.verify()
+    with Image.open(path) as im:
+        assert im.size == (w, h)
+        colours = im.convert("RGB").getcolors(maxcolors=1_000_000)
+    assert colours is None or len(colours) > 20, f"{path.name} looks blank"
+    return w, h
+
+
+# -- states on a synthetic contact table ---------------------------------------------------------
+def table(rows, points=3):
+    """contact-like table: every (step, increment, time) repeated for ``points`` Gauss points."""
+    rows = [r for r in rows for _ in range(points)]
+    return {"step": np.array([r[0] for r in rows], float),
+            "increment": np.array([r[1] for r in rows], float),
+            "time": np.array([r[2] for r in rows], float)}
+
+
+TWO_STEPS = table([(1, 1, 0.25), (1, 2, 0.5), (1, 3, 0.75), (1, 4, 1.0),
+                   (2, 1, 1.1), (2, 2, 1.2), (2, 3, 1.35), (2, 4, 1.6), (2, 5, 1.8), (2, 6, 2.0)])
+
+
+def pairs(states):
+    return [(s.step, s.increment) for s in states]
+
+
+def test_default_states_end_of_steps_and_thirds_of_the_last_in_time():
+    # 1/3 of step 2 is t = 1.333: nearest output 1.35 (inc 3); 2/3 is 1.667: nearest 1.6 (inc 4)
+    assert pairs(chosen_states(TWO_STEPS)) == [(1, 4), (2, 3), (2, 4), (2, 6)]
+
+
+def test_default_states_of_a_single_step_run():
+    one = table([(1, 1, 0.25), (1, 2, 0.5), (1, 3, 0.75), (1, 4, 1.0)])
+    # 1/3 -> 0.333: nearest 0.25 (inc 1); 2/3 -> 0.667: nearest 0.75 (inc 3)
+    assert pairs(chosen_states(one)) == [(1, 1), (1, 3), (1, 4)]
+
+
+def test_default_thirds_that_fall_on_the_end_are_not_repeated():
+    short = table([(1, 1, 1.0), (2, 1, 2.0)])
+    assert pairs(chosen_states(short)) == [(1, 1), (2, 1)]
+
+
+@pytest.mark.parametrize("spec, expected", [
+    ("2:2, 1", [(1, 4), (2, 2)]),            # sorted by time, STEP alone is its end
+    ("1:end,2:last", [(1, 4), (2, 6)]),
+    ("@1.75", [(2, 5)]),                     # nearest output time
+    ("@0", [(1, 1)]),
+    ("2,2:6", [(2, 6)]),                     # the same state once
+    ("default", [(1, 4), (2, 3), (2, 4), (2, 6)]),
+])
+def test_states_spec(spec, expected):
+    assert pairs(chosen_states(TWO_STEPS, spec)) == expected
+
+
+@pytest.mark.parametrize("spec, words", [
+    ("3", "no output in step 3"),
+    ("1:7", "no output increment 7"),
+    ("abc", "expected STEP"),
+    ("@x", "expected @TIME"),
+    ("2:foo", "not a number"),
+])
+def test_bad_states_spec_is_refused_by_name(spec, words):
+    with pytest.raises(ValueError, match=words):
+        chosen_states(TWO_STEPS, spec)
+
+
+def test_state_labels_carry_step_name_and_time():
+    states = chosen_states(TWO_STEPS, "1,2:3", {1: "PRESS", 2: "SLIDE"})
+    assert states[0].label == "step 1 PRESS, end (t = 1)"
+    assert states[1].label == "step 2 SLIDE, inc 3 (t = 1.35)"
+    assert states[1].time == 1.35
+
+
+# -- pictures of real runs -----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("plot")
+    deck = d / "small.dat"
+    deck.write_text(SMALL)
+    outcome, _, _ = run_deck(deck, d / "out")
+    assert outcome.status == 0, outcome.message
+    return d / "out"
+
+
+def test_plot_writes_three_valid_pngs(small_run, tmp_path):
+    assert plot_run(small_run, tmp_path) == 0
+    for name in ("interface.png", "forces.png", "mesh.png"):
+        check_png(tmp_path / name)
+    assert not is_axisymmetric(small_run)
+
+
+def test_mesh_of_a_wide_block_stacks_one_panel_per_step(small_run, tmp_path):
+    """Two steps -> two panels, one above the other: the picture is taller than one panel."""
+    assert plot_run(small_run, tmp_path / "two") == 0
+    assert plot_run(small_run, tmp_path / "one", states="2") == 0
+    w2, h2 = check_png(tmp_path / "two" / "mesh.png")
+    w1, h1 = check_png(tmp_path / "one" / "mesh.png")
+    assert w1 == w2 and h2 > 1.5 * h1
+
+
+def test_cli_states_and_bad_states(small_run, tmp_path, capsys):
+    assert cli_main(["plot", str(small_run), "-o", str(tmp_path), "--states", "1:1,2"]) == 0
+    check_png(tmp_path / "interface.png")
+    assert cli_main(["plot", str(small_run), "-o", str(tmp_path / "bad"), "--states", "5"]) == 2
+    assert "no output in step 5" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+
+def test_axisymmetric_run_is_drawn_with_z_horizontal(tmp_path):
+    """axisym_press: a cylinder of radius 5 and height 10.  Drawn r-z (z across), the body is
+    twice as wide as tall; drawn x-y it is twice as tall as wide."""
+    outcome, _, _ = run_deck(DECKS / "axisym_press.dat", tmp_path / "out")
+    assert outcome.status == 0, outcome.message
+    assert is_axisymmetric(tmp_path / "out")
+    assert plot_run(tmp_path / "out", tmp_path / "rz") == 0
+    assert plot_run(tmp_path / "out", tmp_path / "xy", axes="xy") == 0
+    w_rz, h_rz = check_png(tmp_path / "rz" / "mesh.png")
+    w_xy, h_xy = check_png(tmp_path / "xy" / "mesh.png")
+    assert w_rz > h_rz and h_xy > w_xy
+
+
+def test_nothing_to_plot(tmp_path, capsys):
+    assert plot_run(tmp_path) == 1
+    assert "nothing to plot" in capsys.readouterr().err
+    assert plot_run(tmp_path / "missing") == 1
