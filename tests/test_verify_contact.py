@@ -14,10 +14,10 @@ import re
 
 import numpy as np
 import pytest
+from runner import DECKS, is_quadratic, run_deck
 
 from lagamine_py.checks import evaluate_checks, hertz_closed_form
 from lagamine_py.deck import load_deck
-from runner import DECKS, is_quadratic, run_deck
 
 ROUNDOFF = 1e-11        # relative residual floor of the tail test (final residuals: 2e-12..7e-12)
 
@@ -45,7 +45,7 @@ def newton_tail_ok(history) -> bool:
 def assert_newton_tail(cap, step=None):
     hist = [r.residual_history for r in cap.results if step is None or r.step == step]
     assert hist
-    bad = [" ".join("%.1e" % h for h in rh) for rh in hist if not newton_tail_ok(rh)]
+    bad = [" ".join(f"{h:.1e}" for h in rh) for rh in hist if not newton_tail_ok(rh)]
     assert not bad, bad
 
 
