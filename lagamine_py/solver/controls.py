@@ -12,5 +12,5 @@ CONTROL_PARAMS: tuple[Param, ...] = (
     Param("EASY", int, 5, (1, 1000), doc="an increment converged in at most this many iterations is easy"),
     Param("LINESEARCH", bool, False, doc="backtracking line search on the energy"),
     Param("SOLVER", str, "AUTO", choices=("AUTO", "SPLU", "PARDISO"), doc="sparse linear solver"),
-    Param("FLIPFLOP", int, 4, (1, 100), doc="contact status switches of a point before it is frozen"),
+    Param("FLIPFLOP", int, 4, (1, 100), doc="contact status switches or slip reversals of a point before it is frozen"),
 )
