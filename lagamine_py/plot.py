@@ -334,7 +334,7 @@ def _layout(frames: list[_Frame]) -> tuple[int, int, tuple[float, float], np.nda
         panel_h = float(np.clip(7.0 * aspect, 1.3, 4.0))
         return n, 1, (8.5, panel_h * n + 0.9), box
     panel_w = float(np.clip(5.0 / aspect, 1.3, 4.0))
-    return 1, n, (panel_w * n + 1.8, 5.8), box
+    return 1, n, (max(panel_w * n + 1.8, 3.4), 6.2), box
 
 
 def plot_mesh(res: RunResults, outdir: Path, states: list[State], axisym: bool = False) -> Path | None:
@@ -369,7 +369,8 @@ def plot_mesh(res: RunResults, outdir: Path, states: list[State], axisym: bool =
         ax.set_title(f.state.label, fontsize=9)
     label = "equivalent plastic strain" + ("" if vmax > 0 else " (elastic: 0 everywhere)")
     fig.colorbar(coll, ax=axes.ravel().tolist(), label=label, shrink=0.9)
-    fig.suptitle("deformed mesh (grey: undeformed; brown: foundation)", fontsize=10)
+    sep = " " if size[0] >= 6.0 else "\n"          # a narrow figure gets a two-line title
+    fig.suptitle(f"deformed mesh{sep}(grey: undeformed; brown: foundation)", fontsize=10)
     return _save(fig, outdir / "mesh.png")
 
 
