@@ -95,3 +95,29 @@ def test_deck_matches_reference(deck, tmp_path):
         pytest.fail(f"no reference for {deck.name}: run python tools/make_references.py {deck.stem}")
     report = compare_dirs(out, ref, tolerances(ref))
     assert report.ok, f"{deck.name} differs from {ref}:\n{report.text()}"
+
+
+def _tool():
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("make_references", ROOT / "tools" / "make_references.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_make_references_finds_decks_by_name_and_counts_converged_increments(tmp_path):
+    tool = _tool()
+    deck = ROOT / "decks" / "press_slide.dat"
+    assert tool.resolve_deck("press_slide") == deck.resolve()
+    assert tool.resolve_deck("press_slide.dat") == deck.resolve()
+    assert tool.resolve_deck(str(deck)) == deck.resolve()
+    with pytest.raises(FileNotFoundError):
+        tool.resolve_deck("no_such_deck")
+    assert tool.all_decks() == DECKS
+    sta = tmp_path / "x.sta"
+    sta.write_text("step,step_name,increment,time,dt,iterations,residual,cutbacks,failed,reason\n"
+                   "1,A,1,0.5,0.5,3,1e-12,0,no,\n1,A,2,1.0,0.5,0,,1,yes,element failure\n"
+                   "1,A,2,0.625,0.125,4,1e-12,1,no,\n")
+    assert tool._increments(sta) == 2
+    env = tool.environment()
+    assert env.startswith("git ") and "numpy " in env and "scipy " in env and "Python " in env
