@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import os
 
-_done = False
-
 
 def prepare_openmp_env() -> None:
     """Set ``KMP_BLOCKTIME=0`` unless the user chose a value (call before importing MKL)."""
@@ -30,19 +28,19 @@ def prepare_openmp_env() -> None:
 
 
 def pin_threads() -> dict[str, int]:
-    """Apply the policy above once per process (needs ``threadpoolctl``; silently does nothing
-    without it).  Returns ``{internal_api: threads}`` of the pools it limited."""
-    global _done
-    if _done or os.environ.get("LAGAMINE_THREADS", "").lower() == "off":
+    """Apply the policy above to the OpenBLAS libraries loaded so far (needs ``threadpoolctl``;
+    does nothing without it or when the user set ``OPENBLAS_NUM_THREADS``/``OMP_NUM_THREADS``).
+    Cheap; :mod:`lagamine_py.solver.linear` calls it on import and when PARDISO loads.
+    Returns ``{library prefix: threads}`` of the pools it limited."""
+    if os.environ.get("LAGAMINE_THREADS", "").lower() == "off":
         return {}
-    _done = True
+    if "OPENBLAS_NUM_THREADS" in os.environ or "OMP_NUM_THREADS" in os.environ:
+        return {}
     try:
-        from threadpoolctl import threadpool_limits
+        from threadpoolctl import ThreadpoolController
     except ImportError:
         return {}
-    limits = {}
-    if "OPENBLAS_NUM_THREADS" not in os.environ and "OMP_NUM_THREADS" not in os.environ:
-        limits["openblas"] = 1
-    if limits:
-        threadpool_limits(limits=limits)
-    return limits
+    # select by internal_api: user_api="blas" would also catch MKL
+    pools = ThreadpoolController().select(internal_api="openblas")
+    pools.limit(limits=1)
+    return {lib.prefix: 1 for lib in pools.lib_controllers}

@@ -199,3 +199,17 @@ def test_whole_run_agrees_between_solvers(tmp_path):
     scale = max(np.abs(r.u).max() for r in a)
     diff = max(np.abs(ra.u - rb.u).max() for ra, rb in zip(a, b))
     assert diff <= 1e-10 * scale
+
+
+def test_openblas_pinned_to_one_thread():
+    """Importing the solver limits every loaded OpenBLAS to one thread (the policy of
+    lagamine_py/_threads.py), and leaves MKL alone."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    import os
+    if "OPENBLAS_NUM_THREADS" in os.environ or "OMP_NUM_THREADS" in os.environ:
+        pytest.skip("the user chose the OpenBLAS threads")
+    from lagamine_py._threads import pin_threads
+    pin_threads()
+    info = threadpoolctl.threadpool_info()
+    openblas = [i for i in info if i["internal_api"] == "openblas"]
+    assert openblas and all(i["num_threads"] == 1 for i in openblas)

@@ -24,7 +24,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._threads import pin_threads
 from ..registry import register
+
+pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
 AUTO_PARDISO_DOFS = 5_000     # measured crossover, see docs/performance.md
 PIVOT_RTOL = 1e-12          # |pivot| below this times max |K_ii| counts as zero
@@ -198,7 +201,7 @@ class PardisoSolver(LinearSolver):
     SYM_RTOL = 1e-13
 
     def __init__(self, symmetric: bool = True):
-        from .._threads import pin_threads, prepare_openmp_env
+        from .._threads import prepare_openmp_env
         prepare_openmp_env()
         import pypardiso
         pin_threads()
