@@ -10,8 +10,9 @@ repository root (so the package of this checkout is the one that runs).  The tex
 ``lagamine-py compare`` reads (``contact.csv``, ``contact_totals.csv``, ``reactions.csv``,
 ``displacements.csv``: those the run wrote) are copied into ``decks/reference/<deck>/``, which is
 emptied first so that no stale table survives, next to a one-line ``PROVENANCE``: the command, the
-git commit (``+dirty`` when the tracked tree differs from it), the date, Python, NumPy, SciPy,
-pypardiso (or its absence), the machine, the run's exit status, increments and wall time.
+git commit (``+dirty`` when the package, the decks or setup.cfg differ from it), the date, Python,
+NumPy, SciPy, pypardiso (or its absence), the machine, the run's exit status, increments and wall
+time.
 
 A deck whose run does not finish (exit status other than 0) keeps its old reference; the tool
 reports it and exits with status 1.  Review the differences with ``git diff decks/reference``
@@ -70,7 +71,9 @@ def _version(module: str) -> str:
 def environment() -> str:
     """Commit, Python, library versions and machine, as one line fragment."""
     commit = _git("rev-parse", "--short=12", "HEAD") or "unknown"
-    dirty = _git("status", "--porcelain", "--untracked-files=no")
+    # dirty: what can change the numbers (the package, the decks, the metadata) differs from HEAD
+    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", "lagamine_py", "decks",
+                 ":(exclude)decks/reference", "setup.cfg")
     commit += "+dirty" if dirty else ""
     return (f"git {commit}; Python {platform.python_version()}; numpy {_version('numpy')}; "
             f"scipy {_version('scipy')}; pypardiso {_version('pypardiso')}; "
