@@ -337,6 +337,19 @@ def _layout(frames: list[_Frame]) -> tuple[int, int, tuple[float, float], np.nda
     return 1, n, (max(panel_w * n + 1.8, 3.4), 6.2), box
 
 
+def _peeq_norm(peeq: np.ndarray):
+    """(colour norm, "linear" | "log" | "elastic") for the equivalent plastic strain: a log
+    scale over three decades when a few elements stand far above the rest (the largest value more
+    than 4 times the 90th percentile), so that the rest of the distribution still shows."""
+    from matplotlib.colors import LogNorm, Normalize
+    vmax = float(np.max(peeq)) if len(peeq) else 0.0
+    if vmax <= 0.0:
+        return Normalize(0.0, 1.0), "elastic"
+    if 4.0 * float(np.percentile(peeq, 90)) < vmax:
+        return LogNorm(1e-3 * vmax, vmax, clip=True), "log"
+    return Normalize(0.0, vmax), "linear"
+
+
 def plot_mesh(res: RunResults, outdir: Path, states: list[State], axisym: bool = False) -> Path | None:
     """Deformed meshes coloured by PEEQ (one colour scale), the undeformed mesh in grey and the
     foundation in brown; axisymmetric: z horizontal, r vertical."""
@@ -346,11 +359,9 @@ def plot_mesh(res: RunResults, outdir: Path, states: list[State], axisym: bool =
     frames = [_frame(st, body, fnd, swap=axisym) for st, body, fnd in found]
     plt = _pyplot()
     from matplotlib.collections import PolyCollection
-    from matplotlib.colors import Normalize
     rows, cols, size, box = _layout(frames)
     fig, axes = plt.subplots(rows, cols, figsize=size, squeeze=False, constrained_layout=True)
-    vmax = max(float(np.max(f.peeq)) if len(f.peeq) else 0.0 for f in frames)
-    norm = Normalize(0.0, vmax if vmax > 0 else 1.0)
+    norm, scale_note = _peeq_norm(np.concatenate([f.peeq for f in frames]))
     hl, vl = ("z", "r") if axisym else ("x", "y")
     coll = None
     for ax, f in zip(axes.ravel(), frames):
@@ -367,7 +378,8 @@ def plot_mesh(res: RunResults, outdir: Path, states: list[State], axisym: bool =
         ax.set_xlabel(hl)
         ax.set_ylabel(vl)
         ax.set_title(f.state.label, fontsize=9)
-    label = "equivalent plastic strain" + ("" if vmax > 0 else " (elastic: 0 everywhere)")
+    label = "equivalent plastic strain" + {"linear": "", "log": " (log scale)",
+                                           "elastic": " (elastic: 0 everywhere)"}[scale_note]
     fig.colorbar(coll, ax=axes.ravel().tolist(), label=label, shrink=0.9)
     sep = " " if size[0] >= 6.0 else "\n"          # a narrow figure gets a two-line title
     fig.suptitle(f"deformed mesh{sep}(grey: undeformed; brown: foundation)", fontsize=10)

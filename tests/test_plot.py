@@ -181,3 +181,16 @@ def test_nothing_to_plot(tmp_path, capsys):
     assert plot_run(tmp_path) == 1
     assert "nothing to plot" in capsys.readouterr().err
     assert plot_run(tmp_path / "missing") == 1
+
+
+@pytest.mark.parametrize("peeq, kind", [
+    (np.zeros(5), "elastic"),
+    (np.array([0.0, 0.1, 0.2, 0.3, 0.4]), "linear"),
+    (np.r_[np.full(19, 1e-5), 1e-3], "log"),           # one element 100 x the 90th percentile
+])
+def test_peeq_colour_scale(peeq, kind):
+    from lagamine_py.plot import _peeq_norm
+    norm, got = _peeq_norm(peeq)
+    assert got == kind
+    if kind != "elastic":
+        assert norm.vmax == peeq.max()
