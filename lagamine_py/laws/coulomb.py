@@ -221,7 +221,8 @@ class Coulomb(ContactLaw):
 
     def outside_cone(self, state) -> np.ndarray:
         """(g,) bool: points of ``state`` outside the yield cone, ``|tau| > B(lam) + phi(lam) p``
-        beyond round-off (relative to ``|tau|``, the radius and ``KT * 1e-12``).
+        beyond round-off (``1e-7 (|tau| + radius + p) + 1e-12 KT``: with PHI = B = 0 the exact
+        tau = 0 comes out as the round-off of ``tau_tr - KT dlam``).
 
         The exact integration never leaves such a point; ``INDICATOR=CLASSICAL`` under softening
         does (it takes plastic loading for unloading) and a frozen STICK point may.  The contact
@@ -230,9 +231,10 @@ class Coulomb(ContactLaw):
         tau = np.asarray(state["tau"], float)
         b, _ = self.adhesion(state["lam"])
         phi, _ = self.friction(state["lam"])
-        radius = b + phi * np.asarray(state["p"], float)
-        scale = radius + np.abs(tau) + 1e-12 * self.kt
-        return np.abs(tau) - radius > _ADMISSIBLE_RTOL * scale
+        p = np.asarray(state["p"], float)
+        radius = b + phi * p
+        tol = _ADMISSIBLE_RTOL * (radius + np.abs(tau) + p) + 1e-12 * self.kt
+        return np.abs(tau) - radius > tol
 
     def _loading(self, tau0, p0, p1, lam0, dv_c, tau_tr, contact):
         """Which points load plastically in this sub-interval, and sgn(tau) while they do.
