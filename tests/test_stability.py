@@ -75,3 +75,30 @@ def test_classical_indicator_run_stops_with_exit_3(tmp_path):
     assert "outside the friction cone" in out.stderr and "INDICATOR=CLASSICAL" in out.stderr
     ok = _run_cli(STUDY / "block_study.dat", tmp_path / "ok", HB=-200, INDICATOR="PREDICTOR")
     assert ok.returncode == 0, ok.stderr
+
+
+def test_too_large_rotation_increment_is_a_clear_stop(tmp_path):
+    """The cup scene turned by 28.5 degrees in one increment, no cut-back allowed: the first
+    Newton iterate inverts the block; the run stops with exit 3, names the failure, and the
+    steps that converged are written."""
+    out = _run_cli(STUDY / "cup_rotation.dat", tmp_path, DT=0.5, DTMIN=0.5)
+    assert out.returncode == 3
+    assert "step 3 (TURN) could not converge" in out.stderr
+    assert "non-positive det F" in out.stderr
+    steps = np.loadtxt(tmp_path / "contact_totals.csv", delimiter=",", skiprows=1,
+                       usecols=0, ndmin=1)
+    assert set(steps.astype(int)) == {1, 2}
+
+
+@pytest.mark.parametrize("n", (10, 50))
+def test_ramberg_osgood_exponent_50_follows_the_curve(tmp_path, n):
+    """n = 50 in five increments of 6 % strain, no cut-back: the uniaxial response is the
+    closed-form Ramberg-Osgood curve (the deck's UNIAXIAL_RO check)."""
+    from lagamine_py.checks import evaluate_checks
+    outcome, _, _ = run_deck(STUDY / "ro_study.dat", tmp_path,
+                             {"N": str(n), "DT": "0.2", "DTMIN": "0.2"})
+    assert outcome.status == 0
+    from lagamine_py.deck import load_deck
+    model = load_deck(STUDY / "ro_study.dat", parameters={"N": str(n)})
+    (res,) = evaluate_checks(model.checks, tmp_path)
+    assert res["error"] < 1e-6
