@@ -188,7 +188,10 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
             ev = problem.evaluate(u, u_old, states, ctx_k, True)
         imposing = False
         du_imposed[:] = 0.0
-    raise AssertionError("unreachable")
+    # a solve that converged with frozen points on the last allowed iteration, whose free-law
+    # check asked for more iterations
+    raise IterationLimit(f"no convergence in {settings.maxit} iterations (|R|/F = {history[-1]:.3e})",
+                         history)
 
 
 def _foundation_shift(ctx, ndof: int) -> np.ndarray | None:
@@ -325,10 +328,13 @@ class _FlipFlop:
             if status is None:
                 continue
             status = np.asarray(status).ravel()
-            tau = st.get("tau")
+            tau, p = st.get("tau"), st.get("p")
             code = status.astype(np.int8)
             if tau is not None and np.shape(tau) == status.shape:
-                code = np.where((status == SLIP) & (np.asarray(tau).ravel() < 0.0), _SLIP_NEG, code)
+                # a slip direction only where tau is not round-off (frictionless contact has
+                # tau ~ 1e-12 p of either sign: no reversal to freeze there)
+                floor = 1e-9 * np.abs(np.asarray(p).ravel()) if p is not None else 0.0
+                code = np.where((status == SLIP) & (np.asarray(tau).ravel() < -floor), _SLIP_NEG, code)
             yield k, status, code.astype(np.int8)
 
     def context(self, ctx, states):
