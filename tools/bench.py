@@ -25,6 +25,7 @@ import json
 import os
 import re
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -177,6 +178,8 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     steps_mod.make_solver = orig_make
     steps_mod.Controller._save_restart = orig_save
 
+    if not keep:
+        shutil.rmtree(work, ignore_errors=True)
     t = dict(timers.t)
     iters = timers.n["factor"]
     inner = sum(t.get(k, 0.0) for k in ("bulk", "contact", "pressure", "scatter", "reduce",
@@ -186,7 +189,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     cpu["controller"] = cpu_run - sum(cpu.get(k, 0.0) for k in t if k != "controller")
     nel = int(sum(len(b.ids) for b in model.blocks))
     cgroups = [g for g, kd in zip(problem.groups, problem.kinds) if kd == "contact"]
-    ncontact_gp = int(sum(getattr(g, "dofs").shape[0] for g in cgroups))
+    ncontact_gp = int(sum(g.dofs.shape[0] for g in cgroups))
     impl = [getattr(s, "impl", s) for s in solvers]
     return {
         "nx": nx, "ny": ny, "elements": nel, "dofs": int(problem.ndof),
@@ -216,13 +219,13 @@ def structured_q8(nx: int, ny: int, lx: float = 40.0, ly: float = 20.0):
     index = np.full(nxn * nyn, -1)
     index[keep] = np.arange(keep.sum())
     xy = np.c_[X.ravel(), Y.ravel()][keep]
-    I, J = np.meshgrid(2 * np.arange(nx), 2 * np.arange(ny))
-    I, J = I.ravel(), J.ravel()
+    ci, cj = np.meshgrid(2 * np.arange(nx), 2 * np.arange(ny))
+    ci, cj = ci.ravel(), cj.ravel()
 
     def n(i, j):
         return index[j * nxn + i]
-    conn = np.stack([n(I, J), n(I + 2, J), n(I + 2, J + 2), n(I, J + 2),
-                     n(I + 1, J), n(I + 2, J + 1), n(I + 1, J + 2), n(I, J + 1)], axis=1)
+    conn = np.stack([n(ci, cj), n(ci + 2, cj), n(ci + 2, cj + 2), n(ci, cj + 2),
+                     n(ci + 1, cj), n(ci + 2, cj + 1), n(ci + 1, cj + 2), n(ci, cj + 1)], axis=1)
     return xy, conn
 
 
@@ -343,15 +346,18 @@ def bench_solvers(sizes, repeat: int = 5) -> list[dict]:
         u[2 * bottom + 1] = -1e-4
         u[2 * bottom] = 1e-3
         problem.set_pressures({"PRESSED": 200.0})
+        still = {"FLAT": np.zeros(2)}
         ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, load_factor=1.0,
-                          foundation_old={"FLAT": np.zeros(2)}, foundation_new={"FLAT": np.zeros(2)})
+                          foundation_old=still, foundation_new=still)
         ev = problem.evaluate(u, np.zeros(2 * n), problem.init_states(), ctx, True)
         right = np.flatnonzero(model.coords[:, 0] > 40 - 1e-9)
         free = FreeDofs(problem.pattern, 2 * right)
         A = free.kff(ev.data)
         b = np.random.default_rng(0).standard_normal(A.shape[0])
         row = {"nx": nx, "ny": ny, "dofs": A.shape[0], "nnz": int(A.nnz)}
-        cands = [("SPLU", SpluSolver)] + ([("PARDISO", PardisoSolver)] if pardiso_available() else [])
+        cands = [("SPLU", SpluSolver)]
+        if pardiso_available():
+            cands.append(("PARDISO", PardisoSolver))
         x = {}
         for name, cls in cands:
             s = cls()

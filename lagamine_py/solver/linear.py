@@ -13,7 +13,8 @@ Solvers: ``SPLU`` (SuperLU with the ``MMD_AT_PLUS_A`` ordering), ``PARDISO`` (MK
 ``pypardiso``, registered only when it imports), ``AUTO`` (PARDISO above 5k DOFs when available,
 SPLU otherwise: with its analysis reused PARDISO is faster from 3-5k DOFs on press-slide
 tangents, see ``docs/performance.md``; below, SPLU costs milliseconds and names the unrestrained
-DOFs of a singular tangent by its pivots).  The default COLAMD ``spsolve`` is never used (4-17x slower on these matrices).
+DOFs of a singular tangent by its pivots).  The default COLAMD ``spsolve`` is never used
+(4-17x slower on these matrices).
 """
 from __future__ import annotations
 
