@@ -102,3 +102,48 @@ def test_auto_contextless_defaults():
     ctx = StepContext(nlgeom=False, foundation_old={"F": np.zeros(2)},
                       foundation_new={"F": np.zeros(2)})
     assert grp.compute(u_new, u_old, state, ctx).failure is None
+
+
+@pytest.mark.parametrize("nsub", (1, 2, 4, "AUTO"))
+def test_rigid_turn_in_a_cup_slips_the_chord_lengths(nsub):
+    """A pressed face sliding on a circular foundation, turned rigidly about its centre by
+    0.1 rad in one increment (THETA = 1/2): every point keeps sliding, and the slip is what the
+    element's kinematics give in closed form: the nodes move on the chord of the increment, each
+    sub-interval measures its share of the chord on the axes of its mid-configuration (plus the
+    change of the elastic part tau / KT).  With one sub-interval that is the chord itself; more
+    sub-intervals on a straight path cannot recover the arc, they measure less.  The chord path of the nodes lifts the face by r (1 - cos(dalpha / 2N)) = 6e-3 at
+    N = 2, far more than d0 = 1e-3: the penetration must not be projected from it."""
+    from lagamine_py.elements.contact import ContactGroup
+    from lagamine_py.foundation import Foundation
+    from lagamine_py.laws.base import SLIP
+
+    R, d0, dalpha = 20.0, 1e-3, 0.1
+    ang = np.radians(np.arange(-170.0, -9.0, 5.0))
+    found = Foundation(np.stack([R * np.cos(ang), R * np.sin(ang)], axis=1))
+    a = np.radians([-92.0, -88.0, -90.0])                         # corner, corner, mid
+    coords0 = (R + d0) * np.stack([np.cos(a), np.sin(a)], axis=1)
+    law = _law(KP=1e5, KT=1e5, B=0.0, SUBSTEPS=nsub, SUBTOL=0.03)
+    grp = ContactGroup("S->F", [[0, 1, 2]], [1], [1], coords0, found, "F", law, gauss=3)
+    ctx = StepContext(nlgeom=True, foundation_old={"F": np.zeros(2)},
+                      foundation_new={"F": np.zeros(2)})
+    state = grp.init_state()
+    d_start, _, _ = grp._penetration(coords0[grp.face_nodes], np.zeros(2), 0.0, True)
+    state["p"] = law.kp * d_start
+    state["tau"] = -law.phi * state["p"]                          # sliding clockwise before
+    state["status"][:] = SLIP
+    u_new = _rotate(coords0, dalpha, np.zeros(2)) - coords0
+    res = grp.compute(u_new, np.zeros_like(coords0), state, ctx, tangent=False)
+    n = grp.substeps_for(grp._face_x(0 * u_new), grp._face_x(u_new), geo=True)
+    assert n == {"AUTO": 4}.get(nsub, nsub)
+    r = np.linalg.norm(grp._at_points(coords0[grp.face_nodes])[0], axis=1)
+    np.testing.assert_array_equal(res.state["status"], SLIP)
+    # the foundation is parabolic arcs through points of the circle: p moves by a few %
+    np.testing.assert_allclose(res.state["p"], state["p"], rtol=0.05)
+    # nodes move on the chord x0 + s (R x0 - x0) = rho(s) R(phi(s)) x0: sub-interval k sees
+    # dx / N along the chord, measured on the axes turned by phi(s_k), s_k = (k - 1/2) / N
+    s_k = (np.arange(n) + 0.5) / n
+    phi = np.arctan2(s_k * np.sin(dalpha), 1 - s_k + s_k * np.cos(dalpha))
+    sum_dv = 2 * r * np.sin(dalpha / 2) / n * np.cos(phi - dalpha / 2).sum()
+    # tau = KT (v - v_p) sliding one way: lam = sum |dv| + (tau_end - tau_start) / KT
+    np.testing.assert_allclose(res.state["slip"],
+                               sum_dv + (res.state["tau"] - state["tau"]) / law.kt, rtol=1e-9)
