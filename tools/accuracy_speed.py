@@ -25,8 +25,9 @@ Error measures (the docstring of each ``*_error`` function says more):
 * press-then-slide (``press_slide_study.dat``): ``max_t |T(t) - T_ref(t)| / (phi P_ref)`` over the
   slide step, T the total tangential contact force, against a fine reference run of the same
   scene (32 x 16 Q8, 3 Gauss points, dt = 0.025, THETA = 1/2, SUBSTEPS = AUTO);
-* Cattaneo-Mindlin (``decks/cattaneo_mindlin.dat``, its ``*CHECK, TYPE=CATTANEO`` error on the
-  stick half-width c): run only with ``--scenes cattaneo``.
+* Cattaneo-Mindlin (``decks/cattaneo_mindlin.dat`` as it is, swept over MESH, ETYPE, KP = KT
+  and DT): its ``*CHECK, TYPE=CATTANEO`` error, the stick half-width c at Q = phi P / 2 against
+  a sqrt(1 - Q/(phi P)), relative to a.
 """
 from __future__ import annotations
 
@@ -227,6 +228,9 @@ def hertz_points() -> list[dict[str, str]]:
     pts += vary(dict(base, MESH="fine"), KP=("1e7", "1e9"))
     pts += [dict(base, MESH="fine", KP="1e7", **HERTZ_ELEM[e]) for e in ("Q4", "Q8R")]
     pts += [dict(base, MESH=m, KP="1e7", GAUSS="2", DT="1") for m in ("coarse", "medium", "fine")]
+    # KP = 20 E / h (README), h = 0.267, 0.133, 0.0667 mm
+    pts += [dict(base, MESH=m, KP=k, DT="1") for m, k in (("coarse", "1.5e7"), ("medium", "3e7"),
+                                                          ("fine", "6e7"))]
     return unique(pts)
 
 
@@ -396,12 +400,30 @@ def scene_press_slide(work: Path, jobs: int) -> list[dict]:
     return write_scene("press_slide", rows, names, pts[0])
 
 
+CM_KP = {"coarse": "1.5e7", "medium": "3e7", "fine": "6e7"}      # 20 E / h (the deck's header)
+CM_BASE = {"MESH": "coarse", "ETYPE": "Q8PER", "KP": "1.5e7", "DT": "0.1"}
+
+
+def cm_points() -> list[dict[str, str]]:
+    pts = []
+    for mesh, kp in CM_KP.items():
+        base = dict(CM_BASE, MESH=mesh, KP=kp)
+        pts.append(base)
+        if mesh != "fine":
+            pts += vary(base, KP=(f"{float(kp) / 5:g}", f"{float(kp) * 5:g}"), DT=("0.2", "0.05"))
+    pts.append(dict(CM_BASE, ETYPE="Q8PE"))
+    return unique(pts)
+
+
 def scene_cattaneo(work: Path, jobs: int) -> list[dict]:
-    pts = [{"MESH": m, "ETYPE": "Q8PER"} for m in ("coarse", "medium", "fine")]
+    """decks/cattaneo_mindlin.dat as it is (its *CHECK CATTANEO error: stick half-width c
+    against a sqrt(1 - Q/(phi P)) at Q = phi P / 2, relative to a)."""
+    pts = cm_points()
+    print(f"cattaneo: {len(pts)} runs")
     rows = run_points(ROOT / "decks" / "cattaneo_mindlin.dat", pts, work / "cattaneo", jobs)
     for r in rows:
         r["error"] = float(r.get("STICK_error", math.nan)) if r["status"] == 0 else math.nan
-    return write_scene("cattaneo", rows, ["MESH", "ETYPE"], pts[1])
+    return write_scene("cattaneo", rows, ["MESH", "ETYPE", "KP", "DT"], CM_BASE)
 
 
 SCENES = {"hertz": scene_hertz, "press_slide": scene_press_slide, "cattaneo": scene_cattaneo}
@@ -411,7 +433,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("-j", "--jobs", type=int, default=2)
     ap.add_argument("--work", type=Path, default=Path("/tmp/lagamine_accuracy"))
-    ap.add_argument("--scenes", default="hertz,press_slide")
+    ap.add_argument("--scenes", default="hertz,cattaneo,press_slide")
     args = ap.parse_args(argv)
     all_rows = {}
     for scene in args.scenes.split(","):

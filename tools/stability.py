@@ -6,10 +6,11 @@ Writes ``docs/data/stability_<study>.csv`` and ``docs/images/stability_<study>.p
 
 * ``theta``: THETA = 0, 1/2, 1 (one sub-interval, and SUBSTEPS=AUTO) against the increment size on
   ``tools/study_decks/cup_rotation.dat``, a block turned by 60 degrees in a rigid cup (the contact
-  surface rotates by 60 degrees), no cut-back allowed (DTMIN = DT): error of the slip and of T/P
-  at the end against a reference run (THETA = 1/2, 16 sub-intervals, 512 increments);
+  surface rotates by 57 degrees in the studied step), with and without cut-backs: error of the
+  slip and of T/P at the end against a reference run (THETA = 1/2, 16 sub-intervals, 512
+  increments);
 * ``substeps``: sub-intervals 1..16 and AUTO against hardening friction (HPHI = 0, 0.01, 0.03 per
-  mm of slip) on the same scene at 7.5 degrees per increment;
+  mm of slip) on the same scene at 7.1 degrees asked per increment (cut-backs allowed);
 * ``auto``: error against CPU time on the cup for fixed counts 1, 2, 4, 8 and AUTO (SUBTOL =
   0.02, 0.005 rad) over increment sizes: where AUTO beats every fixed count;
 * ``indicator``: the classical against the elastic-predictor loading indicator under softening
@@ -116,33 +117,44 @@ def short_reason(r: dict) -> str:
 
 # ------------------------------------------------------------------ studies
 def study_theta(work: Path, jobs: int) -> None:
-    ref = cup_reference(work, "0.01")
-    pts = [{"DT": dt, "DTMIN": dt, "THETA": th, "SUBSTEPS": sub}
-           for th in ("0", "0.5", "1") for sub in ("1", "AUTO") for dt in DTS]
+    ref = cup_reference(work, "0.005")
+    pts = [{"DT": dt, "DTMIN": dtmin, "THETA": th, "SUBSTEPS": sub}
+           for th in ("0", "0.5", "1") for sub in ("1", "AUTO") for dt in DTS
+           for dtmin in (dt, "1e-5")]
     rows = run_points(CUP, pts, work / "cup", jobs)
     cup_errors(rows, ref)
     for r in rows:
         r["reason_short"] = short_reason(r)
-        r["deg_per_increment"] = 60.0 * float(r["DT"])
-    write_csv("theta", rows, ["THETA", "SUBSTEPS", "DT", "deg_per_increment", *RUN_COLS,
-                              "slip", "T_over_P", "err_slip", "err_TP", "error", "reason_short"])
-    plt, fig, (ax,) = figure()
+        r["deg_per_increment"] = 57.0 * float(r["DT"])
+        r["cutbacks_allowed"] = r["DTMIN"] == "1e-5"
+    write_csv("theta", rows, ["THETA", "SUBSTEPS", "DT", "deg_per_increment", "cutbacks_allowed",
+                              *RUN_COLS, "slip", "T_over_P", "err_slip", "err_TP", "error",
+                              "reason_short"])
+    plt, fig, axes = figure(2, 6.5)
     for k, th in enumerate(("0", "0.5", "1")):
         for sub, ls in (("1", "-o"), ("AUTO", "--s")):
-            sel = [r for r in rows if r["THETA"] == th and r["SUBSTEPS"] == sub]
+            sel = [r for r in rows if r["THETA"] == th and r["SUBSTEPS"] == sub
+                   and r["cutbacks_allowed"]]
             x = np.array([r["deg_per_increment"] for r in sel])
             e = np.array([r["error"] for r in sel])
-            ax.loglog(x, np.maximum(e, 1e-9), ls, color=f"C{k}", mfc="none" if sub == "AUTO"
-                      else None, label=f"THETA={th}, SUBSTEPS={sub}")
-            bad = [r["deg_per_increment"] for r in sel if r["status"] != 0]
+            style = dict(color=f"C{k}", mfc="none" if sub == "AUTO" else None,
+                         label=f"THETA={th}, SUBSTEPS={sub}")
+            axes[0].loglog(x, np.maximum(e, 1e-9), ls, **style)
+            axes[1].semilogx(x, [r["failed_attempts"] for r in sel], ls, **style)
+            raw = [r for r in rows if r["THETA"] == th and r["SUBSTEPS"] == sub
+                   and not r["cutbacks_allowed"]]
+            bad = [r["deg_per_increment"] for r in raw if r["status"] != 0]
             if bad:
-                ax.loglog(bad, np.full(len(bad), 1.0), "x", color=f"C{k}", ms=12, mew=2)
-    ax.set_xlabel("rotation per increment [degrees]")
-    ax.set_ylabel("error of slip and T/P against the reference")
-    ax.set_title("cup rotation (60 degrees): THETA against increment size\n"
-                 "x at 1 = run stopped (exit 3: no convergence, no cut-back allowed)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
+                axes[1].semilogx(bad, np.full(len(bad), -1 - 0.3 * k), "x", color=f"C{k}",
+                                 ms=10, mew=2)
+    axes[0].set_ylabel("error of slip and T/P against the reference (cut-backs allowed)")
+    axes[0].set_title("cup rotation, step TURN (57 degrees): error")
+    axes[1].set_ylabel("failed attempts (cut-backs); x below 0: without cut-backs, exit 3")
+    axes[1].set_title("... and what it costs: cut-backs, and failures without them")
+    for ax in axes:
+        ax.set_xlabel("rotation per increment asked [degrees]")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
     save(plt, fig, "theta")
 
 
@@ -168,7 +180,7 @@ def study_substeps(work: Path, jobs: int) -> None:
                          color=f"C{k}", label=f"HPHI={h}")
     for ax, what in zip(axes, ("T/P", "slip")):
         ax.set_xticks(range(len(subs)), subs)
-        ax.set_xlabel("SUBSTEPS (7.5 degrees per increment, THETA = 1)")
+        ax.set_xlabel("SUBSTEPS (7.1 degrees asked per increment, cut back where needed; THETA = 1)")
         ax.set_ylabel(f"error of {what} against the reference")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
@@ -178,14 +190,14 @@ def study_substeps(work: Path, jobs: int) -> None:
 
 
 def study_auto(work: Path, jobs: int) -> None:
-    ref = cup_reference(work, "0.01")
+    ref = cup_reference(work, "0.005")
     variants = [("1", None), ("2", None), ("4", None), ("8", None), ("AUTO", "0.02"),
                 ("AUTO", "0.005")]
     pts = []
     for th in ("1", "0.5"):
-        for dt in ("0.25", "0.125", "0.0625", "0.03125", "0.015625"):
+        for dt in ("0.25", "0.125", "0.0625", "0.015625"):
             for sub, tol in variants:
-                p = {"DT": dt, "THETA": th, "SUBSTEPS": sub}
+                p = {"DT": dt, "DTMIN": "1e-5", "THETA": th, "SUBSTEPS": sub}
                 if tol:
                     p["SUBTOL"] = tol
                 pts.append(p)
@@ -204,7 +216,7 @@ def study_auto(work: Path, jobs: int) -> None:
                    and r["status"] == 0]
             ax.loglog([r["cpu_s"] for r in sel], np.maximum([r["error"] for r in sel], 1e-12),
                       "--s" if tol else "-o", color=f"C{k}", label=f"SUBSTEPS={name}")
-        ax.set_xlabel("CPU time [s] (points: increment sizes 15 ... 0.94 degrees)")
+        ax.set_xlabel("CPU time [s] (points: 14, 7, 3.6, 0.9 degrees per increment)")
         ax.set_ylabel("error of slip and T/P")
         ax.set_title(f"cup rotation, THETA = {th}: fixed counts against AUTO")
         ax.grid(True, which="both", alpha=0.3)
@@ -338,15 +350,24 @@ def study_linesearch(work: Path, jobs: int) -> None:
 def study_ro(work: Path, jobs: int) -> None:
     ns = ("3", "5", "10", "20", "30", "40", "50")
     pts = ([{"N": n, "DT": "0.05", "DTMIN": "1e-4"} for n in ns]
-           + [{"N": n, "DT": dt, "DTMIN": dt} for n in ns for dt in ("0.2", "0.05")])
+           + [{"N": n, "DT": dt, "DTMIN": dt} for n in ns for dt in ("1", "0.2", "0.05")])
     rows = run_points(RO, pts, work / "ro", jobs)
+    # a non-uniform case: the press-then-slide block (local yielding under the loaded edge)
+    ps = run_points(STUDY / "press_slide_study.dat", [{"N": n} for n in ("5", "10", "20", "50")],
+                    work / "ro_press_slide", jobs)
+    for r in ps:
+        st = end_state(Path(r["dir"])) if r["status"] == 0 else None
+        r["T_over_phiP"] = st["T_over_P"] / 0.2 if st else math.nan
+        r["reason_short"] = short_reason(r)
+    write_csv("ro_press_slide", ps, ["N", *RUN_COLS, "T_over_phiP", "reason_short"])
     for r in rows:
         r["cutbacks_allowed"] = r["DTMIN"] == "1e-4"
         r["reason_short"] = short_reason(r)
     write_csv("ro", rows, ["N", "DT", "DTMIN", "cutbacks_allowed", *RUN_COLS, "CURVE_error",
                            "reason_short"])
     plt, fig, axes = figure(2, 6)
-    for k, (dt, dtmin) in enumerate((("0.05", "1e-4"), ("0.2", "0.2"), ("0.05", "0.05"))):
+    for k, (dt, dtmin) in enumerate((("0.05", "1e-4"), ("1", "1"), ("0.2", "0.2"),
+                                     ("0.05", "0.05"))):
         sel = [r for r in rows if r["DT"] == dt and r["DTMIN"] == dtmin]
         n = [float(r["N"]) for r in sel]
         lab = f"dt={dt}" + (" with cut-backs" if dtmin == "1e-4" else ", no cut-back")
@@ -363,6 +384,9 @@ def study_ro(work: Path, jobs: int) -> None:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     axes[0].set_title("compression of a Ramberg-Osgood cylinder (30 %)")
+    axes[1].plot([float(r["N"]) for r in ps], [r["newton_iterations"] for r in ps], "-s",
+                 color="C5", label="press-then-slide block (right axis scale: iterations)")
+    axes[1].legend(fontsize=8)
     save(plt, fig, "ro")
 
 
