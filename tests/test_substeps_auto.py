@@ -111,7 +111,8 @@ def test_rigid_turn_in_a_cup_slips_the_chord_lengths(nsub):
     element's kinematics give in closed form: the nodes move on the chord of the increment, each
     sub-interval measures its share of the chord on the axes of its mid-configuration (plus the
     change of the elastic part tau / KT).  With one sub-interval that is the chord itself; more
-    sub-intervals on a straight path cannot recover the arc, they measure less.  The chord path of the nodes lifts the face by r (1 - cos(dalpha / 2N)) = 6e-3 at
+    sub-intervals on a straight path cannot recover the arc, they measure less.  The chord
+    path of the nodes lifts the face by r (1 - cos(dalpha / 2N)) = 6e-3 at
     N = 2, far more than d0 = 1e-3: the penetration must not be projected from it."""
     from lagamine_py.elements.contact import ContactGroup
     from lagamine_py.foundation import Foundation

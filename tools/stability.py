@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from accuracy_speed import DOCS, ROOT, STUDY, run_points  # noqa: E402
+from accuracy_speed import DOCS, STUDY, run_points  # noqa: E402
 
 from lagamine_py.laws.contact_point import drive  # noqa: E402
 from lagamine_py.laws.coulomb import Coulomb  # noqa: E402
@@ -180,7 +180,8 @@ def study_substeps(work: Path, jobs: int) -> None:
                          color=f"C{k}", label=f"HPHI={h}")
     for ax, what in zip(axes, ("T/P", "slip")):
         ax.set_xticks(range(len(subs)), subs)
-        ax.set_xlabel("SUBSTEPS (7.1 degrees asked per increment, cut back where needed; THETA = 1)")
+        ax.set_xlabel("SUBSTEPS (7.1 degrees asked per increment, cut back where needed; "
+                      "THETA = 1)")
         ax.set_ylabel(f"error of {what} against the reference")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)

@@ -36,7 +36,8 @@ sub-intervals cannot recover the arc of a rotation: for a rigid turn by ``dalpha
 measured falls short of the arc by about ``dalpha^2/6`` (relative) with one sub-interval and
 THETA = 0 or 1, ``dalpha^2/24`` with THETA = 1/2, and tends to ``dalpha^2/12`` for many
 sub-intervals whatever THETA (``tests/test_substeps_auto.py`` checks the closed form): more
-sub-intervals help THETA = 0 and 1, not THETA = 1/2.  The element measures the rotation angle of the face
+sub-intervals help THETA = 0 and 1, not THETA = 1/2.  The element measures the rotation angle
+of the face
 tangent between the start and end configurations at every Gauss point and takes
 ``N = ceil(max angle / SUBTOL)``, clipped to ``[1, SUBMAX]`` -- one count for the whole group
 in this increment (the sub-interval loop is batched over all points, so a per-point count

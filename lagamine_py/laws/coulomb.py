@@ -44,7 +44,8 @@ exact for *any* increment size with hardening or softening too, so sub-intervals
 to follow the rotation of the local axes in the contact element (``THETA`` and ``SUBSTEPS`` are
 read by the contact element; this law does not use them; with ``SUBSTEPS=AUTO`` the element
 chooses the count per increment from the rotation of the axes, ``SUBTOL`` and ``SUBMAX``).
-The tangent is the exact derivative of this map: ``d tau/d tau_tr = H/(KT+H)``, ``d tau/d p_new = sgn KT phi/(KT+H)``, which equals
+The tangent is the exact derivative of this map: ``d tau/d tau_tr = H/(KT+H)``,
+``d tau/d p_new = sgn KT phi/(KT+H)``, which equals
 the continuum matrix (10) at the end state.
 
 *Dissipation* ``dissip += int |tau| dlam`` along that same exact path: for a given ``lam`` the

@@ -10,7 +10,8 @@ DELTA; step START turns the inner face rigidly about the origin by 3 degrees (cu
 the onset of sliding is not what this scene studies), step TURN from 3 to 60 degrees with the
 increment DT under study (one tabulated amplitude per node, direction and step, the rotation
 sampled at 241 points per step).
-Parameters: DT (increment, as a fraction of the step), DTMIN (= DT: no cut-back), THETA, SUBSTEPS, SUBTOL, HPHI, KP.
+Parameters: DT (increment, as a fraction of the step), DTMIN (= DT: no cut-back), THETA,
+SUBSTEPS, SUBTOL, HPHI, KP.
 """
 from __future__ import annotations
 
