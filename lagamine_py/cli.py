@@ -108,6 +108,15 @@ def _cmd_check(args) -> int:
     return EXIT_OK
 
 
+def _show_advice() -> None:
+    """Model advice (lagamine_py.advice warnings, e.g. a penalty far from 20-100 E/h) on stderr;
+    it also goes to the run's .log file."""
+    import logging
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("lagamine-py: warning: %(message)s"))
+    logging.getLogger("lagamine_py.advice").addHandler(handler)
+
+
 def _cmd_run(args) -> int:
     from .solver import run
     from .solver.restart import restart_deck
@@ -130,6 +139,7 @@ def _cmd_run(args) -> int:
     if args.solver:
         for step in model.steps:
             step.controls["SOLVER"] = args.solver
+    _show_advice()
     outcome = run(model, outdir, restart=args.restart is not None, deck_path=Path(deck),
                   progress=not args.quiet)
     stream = sys.stdout if outcome.status == EXIT_OK else sys.stderr

@@ -45,6 +45,7 @@ class Problem:
     pressure_groups: dict[str, Any]
     foundations: dict[str, Any]
     pattern: Pattern
+    warnings: list[str] = field(default_factory=list)   # model advice, logged when the run starts
 
     @property
     def ndof(self) -> int:
@@ -139,7 +140,7 @@ def build_problem(model) -> Problem:
     from ..elements.contact import ContactGroup
     from ..elements.edges import PressureGroup, surface_faces
 
-    groups, kinds, names, blocks = [], [], [], []
+    groups, kinds, names, blocks, advice = [], [], [], [], []
     laws = {name: get("laws", spec.law)(**spec.params) for name, spec in model.materials.items()}
     for blk in model.blocks:
         law = laws[blk.material] if blk.material in laws else laws[blk.material.upper()]
@@ -158,10 +159,11 @@ def build_problem(model) -> Problem:
         face_nodes, elements, faces = surface_faces(model, surf.name)
         fname = _key(model.foundations, cs.foundation)
         name = f"{surf.name}->{fname}"
+        claw = contact_laws[_key(model.contact_laws, cs.law)]
         groups.append(ContactGroup(name, face_nodes, elements, faces, model.coords,
-                                   foundations[fname], fname,
-                                   contact_laws[_key(model.contact_laws, cs.law)], cs.gauss,
+                                   foundations[fname], fname, claw, cs.gauss,
                                    model.axisymmetric, _surface_thickness(model, surf, lookup)))
+        advice.extend(penalty_advice(name, claw, face_nodes, elements, model, laws, lookup))
         kinds.append(CONTACT)
         names.append(name)
         blocks.append(None)
@@ -180,7 +182,40 @@ def build_problem(model) -> Problem:
         blocks.append(None)
 
     pattern = Pattern(model.ndof, [g.dofs for g in groups])
-    return Problem(model, groups, kinds, names, blocks, pressure_groups, foundations, pattern)
+    return Problem(model, groups, kinds, names, blocks, pressure_groups, foundations, pattern,
+                   advice)
+
+
+# Penalties outside this range of E/h (h the face length) are reported: too soft a KP lets the
+# body sink, too stiff a KP or KT makes the contact pressure oscillate from point to point
+# (docs/accuracy_speed.md: Hertz at KP = 660 E/h is 16 % off, with no convergence trouble).
+PENALTY_RANGE = (5.0, 200.0)
+
+
+def penalty_advice(name, law, face_nodes, elements, model, laws, lookup) -> list[str]:
+    """Warnings when a contact law's KP or KT is far from 20-100 E/h on this surface."""
+    kp, kt = (getattr(law, k, None) for k in ("kp", "kt"))
+    if kp is None or len(face_nodes) == 0:
+        return []
+    x = model.coords[face_nodes[:, :2]]
+    h = float(np.median(np.linalg.norm(x[:, 1] - x[:, 0], axis=1)))
+    block = model.blocks[lookup[int(elements[0])][0]]
+    mat = laws.get(block.material) or laws.get(block.material.upper())
+    try:
+        E = float(mat.elastic_moduli()[0])
+    except (AttributeError, KeyError, TypeError):
+        return []
+    out = []
+    for label, k in (("KP", kp), ("KT", kt)):
+        ratio = float(k) * h / E
+        if not PENALTY_RANGE[0] <= ratio <= PENALTY_RANGE[1]:
+            out.append(f"contact {name}: {label} = {float(k):.3g} is {ratio:.3g} E/h (E = {E:.4g}, "
+                       f"face length h = {h:.3g}); 20-100 E/h is advised: "
+                       + ("a softer penalty lets the body sink into the foundation"
+                          if ratio < PENALTY_RANGE[0] else
+                          "a stiffer one makes p and tau oscillate from point to point, "
+                          "a wrong answer that converges"))
+    return out
 
 
 def _key(table: dict, name: str) -> str:

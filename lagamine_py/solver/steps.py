@@ -102,6 +102,8 @@ class Controller:
         for w in self.writers:
             w.restarting = restart           # writers that append on restart can read this
             w.start_run()
+        for advice in getattr(self.problem, "warnings", ()):
+            logging.getLogger("lagamine_py.advice").warning(advice)
         status, message = EXIT_OTHER, "interrupted"
         try:
             first = resume["step"] if resume else 0
