@@ -35,6 +35,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from ..elements.shapes import gauss_quad, line_shape
+from ..laws.j2 import von_mises
 from ..registry import register
 from .base import IncrementResult, Writer
 
@@ -48,12 +49,6 @@ QUAD_NODES = np.array([(-1, -1), (1, -1), (1, 1), (-1, 1),
 
 SAMPLES_PER_ARC = 16
 STRESS_NAMES = ("S11", "S22", "S33", "S12")
-
-
-def von_mises(s: np.ndarray) -> np.ndarray:
-    """Von Mises stress of 4-vectors ``s`` (..., 4) = [s11, s22, s33, s12]."""
-    s11, s22, s33, s12 = np.moveaxis(s, -1, 0)
-    return np.sqrt(0.5 * ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2) + 3.0 * s12 ** 2)
 
 
 def _lagrange_1d(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
