@@ -436,6 +436,65 @@ class SolidGroup(Group):
         return GroupResult(f, K, new_state)
 
 
+    # -- optional fused kernel (numba): compute + scatter, no (e, nd, nd) array -----------------
+    def kernel_supported(self) -> bool:
+        """True when the numba kernel reproduces this group: numba imports and the law is
+        ELASTIC, J2_LINEAR or RAMBERG_OSGOOD (exactly; subclasses and plugins use NumPy)."""
+        try:
+            from .numba_kernels import law_parameters
+        except ImportError:
+            return False
+        return law_parameters(self.law) is not None
+
+    def compute_into(self, u_new: np.ndarray, u_old: np.ndarray, state: dict[str, np.ndarray],
+                     ctx: StepContext, tangent: bool, data: np.ndarray | None,
+                     f_out: np.ndarray, positions: np.ndarray) -> GroupResult:
+        """:meth:`compute` through the numba kernel, scattering as it goes.
+
+        Adds the tangent into the CSR ``data`` (nnz,) at ``positions`` (e nd nd,) (the group's
+        ``Pattern.positions``) and the forces into ``f_out`` (ndof,) at :attr:`dofs`.  Returns
+        a :class:`GroupResult` with the element forces ``f`` (e, nd), ``K = None`` (it is in
+        ``data``), the same trial state and the same failures as :meth:`compute`.  Only for a
+        group with :meth:`kernel_supported`.
+        """
+        from . import numba_kernels as nk
+
+        if self._bad0.any():
+            return self._failure(self._bad0, "non-positive reference Jacobian (or r <= 0)",
+                                 state, False)
+        arrays = self._cache.get("kernel")
+        if arrays is None:
+            kind, lp, Del = nk.law_parameters(self.law)
+            c = np.ascontiguousarray
+            arrays = (kind, lp, Del, c(self.conn, np.int64), c(self.N, float),
+                      c(self.dNdX, float), c(self.R0, float), c(self.w0, float),
+                      c(self.dofs, np.int64))
+            self._cache["kernel"] = arrays
+        kind, lp, Del, conn, N, dNdX, R0, w0, dofs = arrays
+        ne, nd = dofs.shape
+        nq = self.nq
+        eps_e_n = np.ascontiguousarray(np.broadcast_to(state["eps_e"], (ne, nq, 4)), float)
+        peeq_n = np.ascontiguousarray(np.broadcast_to(state["peeq"], (ne, nq)), float)
+        new_state = {"eps_e": np.empty((ne, nq, 4)), "peeq": np.empty((ne, nq)),
+                     "stress": np.empty((ne, nq, 4))}
+        fe = np.empty((ne, nd))
+        flags = np.empty(ne, np.int8)
+        if tangent:
+            pos = np.asarray(positions, np.int64).reshape(ne, nd, nd)
+        else:
+            data, pos = np.empty(0), np.empty((0, 0, 0), np.int64)
+        nk.solid_kernel(bool(ctx.nlgeom), bool(tangent), bool(self.axisymmetric), kind, lp, Del,
+                        conn, np.ascontiguousarray(u_new, float),
+                        np.ascontiguousarray(u_old, float), N, dNdX, R0, w0, eps_e_n, peeq_n,
+                        new_state["eps_e"], new_state["peeq"], new_state["stress"], fe, flags,
+                        data, f_out, pos, dofs)
+        for code, what in ((nk.BAD_DET_F, "non-positive det F"),
+                           (nk.RETURN_MAP_FAILED, "return mapping failed")):
+            if (flags == code).any():
+                return self._failure(flags == code, what, state, False)
+        return GroupResult(fe, None, new_state)
+
+
 def _weighted_force(B, s, w):
     """sum_q w B^T s: (e, q, s, d), (e, q, s), (e, q) -> (e, d)."""
     return np.einsum("eqsd,eqs->ed", B, s * w[..., None], optimize=True)
