@@ -98,6 +98,12 @@ def _clipped_linear(v0: float, slope: float, lam: np.ndarray):
     return np.maximum(v0 + slope * lam, 0.0), np.where(active, slope, 0.0)
 
 
+def _as_shape(x, shape) -> np.ndarray:
+    """``x`` as a float array of ``shape`` (a broadcast view only when it is not one already)."""
+    x = np.asarray(x, float)
+    return x if x.shape == shape else np.broadcast_to(x, shape)
+
+
 @register("contact_laws", "COULOMB")
 class Coulomb(ContactLaw):
     """Elasto-plastic Coulomb friction with adhesion and isotropic hardening (paper, eqs. 1-11).
@@ -140,6 +146,12 @@ class Coulomb(ContactLaw):
             # AUTO is resolved by the contact element (this law integrates each sub-interval
             # exactly; sub-intervals only refine the rotation of the local axes)
             raise ParamError(f"SUBTOL must be > 0 with SUBSTEPS=AUTO, got {self.subtol:g}")
+        # the finite clipping kinks of B(lam) and phi(lam) (softening only); without them the
+        # return finishes in one piece and the dissipation integral has one piece
+        self._kinks = tuple(k for k in (_kink(self.b, self.hb), _kink(self.phi, self.hphi))
+                            if np.isfinite(k))
+        # KT + H > 0 always when neither B nor phi softens (H >= 0, p >= 0)
+        self._may_snap_back = self.hb < 0.0 or self.hphi < 0.0
 
     # -- hardening functions ---------------------------------------------------------------
     def adhesion(self, lam):
@@ -178,10 +190,15 @@ class Coulomb(ContactLaw):
 
     def _update(self, state, d, du, dv, frozen):
         p_old = np.asarray(state["p"], float)
-        d, du, dv = (np.broadcast_to(np.asarray(x, float), p_old.shape) for x in (d, du, dv))
+        shape = p_old.shape
+        d, du, dv = (_as_shape(x, shape) for x in (d, du, dv))
         kp, kt = self.kp, self.kt
-        hold = np.full(p_old.shape, -1) if frozen is None else np.broadcast_to(frozen, p_old.shape)
-        contact = (d >= 0.0) & (hold != OPEN)          # d = 0: touching, closed with p = 0
+        free = frozen is None                      # no flip-flop control: skip the hold masks
+        hold = None if free else np.broadcast_to(frozen, shape)
+        contact = d >= 0.0                         # d = 0: touching, closed with p = 0
+        if not free:
+            closable = hold != OPEN
+            contact &= closable
         p1 = np.where(contact, kp * np.maximum(d, 0.0), 0.0)
 
         # the in-contact part of the sub-interval: re-contact starts from p = tau = 0 with the
@@ -191,33 +208,49 @@ class Coulomb(ContactLaw):
         # but keeps its tau through the sub-intervals)
         recon = contact & (np.asarray(state["status"]) == OPEN)
         partial = recon & (d <= du) & (du > 0.0)         # du = 0 at d = 0: touching all along
-        sep = ~contact & (p_old > 0.0) & (d_old > 0.0) & (d <= 0.0) & (hold != OPEN)
-        safe_du = np.where(partial, du, 1.0)
-        frac = np.where(partial, d / safe_du, 1.0)
-        frac = np.where(sep, d_old / np.where(sep, d_old - d, 1.0), frac)
-        active = contact | sep
-        dv_c = dv * frac
-        tau0 = np.where(recon, 0.0, np.asarray(state["tau"], float))
-        p0 = np.where(recon, 0.0, p_old)
+        sep = ~contact & (p_old > 0.0) & (d_old > 0.0) & (d <= 0.0)
+        if not free:
+            sep &= closable
+        any_recon, any_sep = bool(recon.any()), bool(sep.any())
+        simple = not (any_recon or any_sep)        # every point stays closed or stays open
+        if simple:                                 # frac = 1 everywhere: dv_c = dv exactly
+            frac, active, dv_c = 1.0, contact, dv
+        else:
+            safe_du = np.where(partial, du, 1.0)
+            frac = np.where(partial, d / safe_du, 1.0)
+            frac = np.where(sep, d_old / np.where(sep, d_old - d, 1.0), frac)
+            active = contact | sep
+            dv_c = dv * frac
+        tau_old = np.asarray(state["tau"], float)
+        tau0 = np.where(recon, 0.0, tau_old) if any_recon else tau_old
+        p0 = np.where(recon, 0.0, p_old) if any_recon else p_old
         lam0 = np.asarray(state["lam"], float)
         tau_tr = tau0 + kt * dv_c
 
-        plastic, sig = self._loading(tau0, p0, p1, lam0, dv_c, tau_tr, active)
-        plastic = np.where(hold == STICK, False, np.where(hold == SLIP, contact, plastic))
-        lam1, dmat, hmat, phi1 = self._return(np.abs(tau_tr), p1, lam0, plastic)
+        hard0 = self._hardening(lam0)
+        plastic, sig, f_tr = self._loading(tau0, p0, p1, hard0, dv_c, tau_tr, active)
+        if not free:
+            plastic = np.where(hold == STICK, False, np.where(hold == SLIP, contact, plastic))
+        lam1, dmat, hmat, phi1 = self._return(p1, lam0, plastic, f_tr, hard0)
         dlam = np.where(plastic, lam1 - lam0, 0.0)
         if self.indicator == "PREDICTOR":     # roundoff guard at neutral loading
-            dlam = np.where(hold == SLIP, dlam, np.maximum(dlam, 0.0))
-        tau1 = np.where(contact, tau_tr - sig * kt * dlam, 0.0)
+            dlam = np.maximum(dlam, 0.0) if free else np.where(hold == SLIP, dlam,
+                                                               np.maximum(dlam, 0.0))
+        skt = sig * kt                         # sgn(tau) KT, exactly +-KT
+        tau1 = np.where(contact, tau_tr - skt * dlam, 0.0)
         ddis = self._dissipation(tau0, p0, p1 - p0, dv_c, lam0, dlam, sig, plastic)
 
         new_state = dict(state)
         new_state.update(
             p=p1, tau=tau1, lam=lam0 + dlam, slip=np.asarray(state["slip"], float) + np.abs(dlam),
             dissip=np.asarray(state["dissip"], float) + ddis,
-            status=np.where(~contact, OPEN, np.where(plastic, SLIP, STICK)).astype(np.int8))
-        tan = self._tangent(contact, sep, plastic, recon, partial, d, du, dv, frac, sig, dmat,
-                            hmat, phi1)
+            # OPEN, STICK, SLIP = 0, 1, 2: contact + (plastic and contact), as int8
+            status=contact.view(np.int8) + (plastic & contact).view(np.int8))
+        if simple:
+            tan = self._tangent_simple(contact, plastic, dv, skt, dmat, phi1)
+        else:
+            tan = self._tangent(contact, sep, plastic, recon, partial, d, du, dv, frac, skt,
+                                dmat, phi1, active)
         return new_state, tan
 
     def outside_cone(self, state) -> np.ndarray:
@@ -237,64 +270,94 @@ class Coulomb(ContactLaw):
         tol = _ADMISSIBLE_RTOL * (radius + np.abs(tau) + p) + 1e-12 * self.kt
         return np.abs(tau) - radius > tol
 
-    def _loading(self, tau0, p0, p1, lam0, dv_c, tau_tr, contact):
-        """Which points load plastically in this sub-interval, and sgn(tau) while they do.
+    def _hardening(self, lam):
+        """``B, B', phi, phi'`` at ``lam`` (:meth:`adhesion`, :meth:`friction`), as plain floats
+        for a function with slope 0 (the common case: fewer array operations, same values)."""
+        if self.hb == 0.0:
+            b, hb = self.b, 0.0
+        else:
+            b, hb = _clipped_linear(self.b, self.hb, lam)
+        if self.hphi == 0.0:
+            phi, hphi = self.phi, 0.0
+        else:
+            phi, hphi = _clipped_linear(self.phi, self.hphi, lam)
+        return b, hb, phi, hphi
+
+    def _loading(self, tau0, p0, p1, hard0, dv_c, tau_tr, contact):
+        """Which points load plastically in this sub-interval, sgn(tau) while they do, and the
+        trial yield function ``f_tr`` (at ``lam0``).
 
         ``contact``: points in contact during (part of) the sub-interval; the others are
-        never plastic.
+        never plastic.  ``hard0``: :meth:`_hardening` at ``lam0``.
         """
         kt = self.kt
-        b0, hb0 = self.adhesion(lam0)
-        phi0, hphi0 = self.friction(lam0)
+        b0, hb0, phi0, hphi0 = hard0
         radius0 = b0 + phi0 * p0
-        f0 = np.abs(tau0) - radius0
+        abs_tau0 = np.abs(tau0)
+        f0 = abs_tau0 - radius0
         f_tr = np.abs(tau_tr) - b0 - phi0 * p1
         sig_tr = np.where(tau_tr >= 0.0, 1.0, -1.0)
         sig0 = np.where(tau0 != 0.0, np.sign(tau0), np.where(dv_c >= 0.0, 1.0, -1.0))
         # on the surface at the start (a re-contact starts at tau = p = 0: on it iff B = 0)
-        on = contact & (f0 >= -_ON_SURFACE_RTOL * (radius0 + np.abs(tau0)))
+        on = contact & (f0 >= -_ON_SURFACE_RTOL * (radius0 + abs_tau0))
         indicator = sig0 * kt * dv_c - phi0 * (p1 - p0)        # elastic-predictor rates
+        pos_tr = f_tr > 0.0
         if self.indicator == "CLASSICAL":                       # actual (plastic) rates
             h0 = hb0 + hphi0 * p0
             indicator = h0 * indicator / (h0 + kt)
-        # paper: unloading iff < 0; at exactly neutral loading (a point resting at the tip of the
-        # cone, B = 0, before anything moves) the elastic branch gives the stick tangent, so a
-        # body meshed on the foundation is not left without tangential stiffness
-        if self.indicator == "CLASSICAL":                       # kept as the textbook states it
+            # kept as the textbook states it
             loading_on = on & (indicator >= 0.0)
         else:
-            loading_on = on & ((indicator > 0.0) | ((indicator == 0.0) & (f_tr > 0.0)))
-        reversed_through = on & ~loading_on & (sig_tr != sig0) & (f_tr > 0.0)
-        crossing = contact & ~on & (f_tr > 0.0)                 # starts inside, yields part-way
-        return loading_on | reversed_through | crossing, sig_tr
+            # paper: unloading iff < 0; at exactly neutral loading (a point resting at the tip
+            # of the cone, B = 0, before anything moves) the elastic branch gives the stick
+            # tangent, so a body meshed on the foundation is not left without tangential
+            # stiffness
+            loading_on = on & ((indicator > 0.0) | ((indicator == 0.0) & pos_tr))
+        # plastic: loading on the surface; or on it, unloading, and reversed through to the
+        # other side of the cone; or starting inside and yielding part-way
+        through = pos_tr & contact & (~on | (sig_tr != sig0))
+        return loading_on | through, sig_tr, f_tr
 
-    def _return(self, abs_tau_tr, p1, lam0, plastic):
-        """Solve ``|tau_tr| - KT Lam - B(lam) - phi(lam) p1 = 0`` piece by piece over kinks.
+    def _return(self, p1, lam0, plastic, f_tr, hard0):
+        """Solve ``|tau_tr| - KT Lam - B(lam) - phi(lam) p1 = 0`` piece by piece over kinks,
+        from ``f_tr`` (its value at ``Lam = 0``) and ``hard0`` (:meth:`_hardening` at lam0).
 
         Returns ``lam1``, ``KT + H``, ``H`` and ``phi`` on the final piece (g,).
         """
         kt = self.kt
-        kinks = (_kink(self.b, self.hb), _kink(self.phi, self.hphi))
-        lam = lam0.copy()
-        resid = abs_tau_tr - self.adhesion(lam)[0] - self.friction(lam)[0] * p1  # f_tr
+        kinks = self._kinks
+        lam = lam0
+        resid = f_tr
         done = ~plastic
         dmat = np.full_like(lam, kt)
         hmat = np.zeros_like(lam)
-        for _ in range(len(kinks) + 1):                     # walk over at most two kinks
-            h = self.adhesion(lam)[1] + self.friction(lam)[1] * p1
+        h = hard0[1] + hard0[3] * p1
+        for it in range(len(kinks) + 1):                    # walk over at most two kinks
+            if it:
+                _, hb, _, hphi = self._hardening(lam)
+                h = hb + hphi * p1
             step = resid / (kt + h)
-            ahead = np.minimum(*(np.where(lam < k, k, np.inf) for k in kinks))
-            cross = ~done & (step > 0.0) & (lam + step > ahead)
-            finish = ~done & ~cross
-            if np.any(finish & (kt + h <= 0.0)):
+            if kinks:
+                ahead = (np.where(lam < kinks[0], kinks[0], np.inf) if len(kinks) == 1 else
+                         np.minimum(*(np.where(lam < k, k, np.inf) for k in kinks)))
+                cross = ~done & (step > 0.0) & (lam + step > ahead)
+                finish = ~done & ~cross
+            else:                                           # no kink ahead of any lam
+                cross, finish = None, ~done
+            if self._may_snap_back and np.any(finish & (kt + h <= 0.0)):
                 raise ReturnMappingError("COULOMB: KT + dB/dlam + p dphi/dlam <= 0 at a "
                                          "slipping point (softening snap-back)")
             dmat = np.where(finish, kt + h, dmat)
             hmat = np.where(finish, h, hmat)
+            if cross is None:
+                lam = np.where(finish, lam + step, lam)
+                break
             resid = np.where(cross, resid - (kt + h) * (ahead - lam), resid)  # linear piece
             lam = np.where(finish, lam + step, np.where(cross, ahead, lam))
             done = done | finish
-        phi1, _ = self.friction(lam)
+            if done.all():
+                break
+        phi1 = self._hardening(lam)[2]
         return lam, dmat, hmat, phi1
 
     def _dissipation(self, tau0, p0, dp, dv_c, lam0, dlam, sig, plastic):
@@ -304,24 +367,27 @@ class Coulomb(ContactLaw):
             return np.zeros_like(lam0)
         lam1 = lam0 + dlam
         lo, hi = np.minimum(lam0, lam1), np.maximum(lam0, lam1)
-        cuts = [np.clip(k, lo, hi) for k in (_kink(self.b, self.hb), _kink(self.phi, self.hphi))]
-        edges = np.sort(np.stack([lo, *cuts, hi], axis=-1), axis=-1)       # (g, 4)
-        a, c = edges[..., :-1], edges[..., 1:]                              # (g, 3) pieces
-        lam = 0.5 * (a + c)[..., None] + 0.5 * (c - a)[..., None] * _GL_X   # (g, 3, k)
-        b, _ = self.adhesion(lam)
-        phi, _ = self.friction(lam)
+        if self._kinks:
+            cuts = [np.clip(k, lo, hi) for k in self._kinks]
+            edges = np.sort(np.stack([lo, *cuts, hi], axis=-1), axis=-1)   # (g, 2..4)
+            a, c = edges[..., :-1], edges[..., 1:]                          # pieces
+        else:                                   # no kink anywhere: one piece (g, 1)
+            a, c = lo[:, None], hi[:, None]
+        lam = 0.5 * (a + c)[..., None] + 0.5 * (c - a)[..., None] * _GL_X   # (g, p, k)
+        b, _, phi, _ = self._hardening(lam)
         # s(lam) from |tau_tr(s)| - KT (lam - lam0) = B + phi p(s), linear in s
         ex = lambda x: x[..., None, None]  # noqa: E731  (g,) -> (g, 1, 1)
         num = self.kt * (lam - ex(lam0)) + b + phi * ex(p0) - ex(sig * tau0)
         den = ex(sig * self.kt * dv_c) - phi * ex(dp)
         ok = np.abs(den) > 1e-300
-        s = np.clip(np.where(ok, num / np.where(ok, den, 1.0), 1.0), 0.0, 1.0)
+        s = np.minimum(np.maximum(np.where(ok, num / np.where(ok, den, 1.0), 1.0), 0.0), 1.0)
         abs_tau = b + phi * (ex(p0) + ex(dp) * s)
         piece = np.einsum("...pk,k->...p", abs_tau, _GL_W) * 0.5 * (c - a)
-        return np.where(act, np.sign(dlam) * piece.sum(axis=-1), 0.0)
+        total = piece.sum(axis=-1) if piece.shape[-1] > 1 else piece[..., 0]
+        return np.where(act, np.sign(dlam) * total, 0.0)
 
-    def _tangent(self, contact, sep, plastic, recon, partial, d, du, dv, frac, sig, dmat, hmat,
-                 phi1):
+    def _tangent(self, contact, sep, plastic, recon, partial, d, du, dv, frac, skt, dmat, phi1,
+                 active):
         """Exact derivatives of ``tau_new`` and ``lam_new`` (zero ``tau`` derivatives where open).
 
         The map is ``tau_tr = tau0 + KT dv frac`` and ``p1 = KP max(d, 0)`` followed by the
@@ -329,29 +395,63 @@ class Coulomb(ContactLaw):
 
             d lam1 = (sgn d tau_tr - phi1 d p1 + KT d lam0) / D
             d tau1 = d tau_tr - sgn KT (d lam1 - d lam0)
+
+        ``skt`` = sgn KT, ``active`` = contact or separating.
         """
         kp, kt = self.kp, self.kt
         c = contact.astype(float)
-        active = (contact | sep).astype(float)
+        active = active.astype(float)
         safe_du = np.where(partial | sep, du, 1.0)
         # frac = d/du on a partial re-contact, d_old/(d_old - d) = 1 - d/du on a separation
         frac_d = np.where(partial, 1.0 / safe_du, np.where(sep, -1.0 / safe_du, 0.0))
         frac_du = np.where(partial, -frac / safe_du, np.where(sep, (1.0 - frac) / safe_du, 0.0))
-        dtr = {"d": kt * dv * frac_d, "du": kt * dv * frac_du, "v": kt * frac,
+        ktdv = kt * dv
+        dtr = {"d": ktdv * frac_d, "du": ktdv * frac_du, "v": kt * frac,
                "tau": np.where(recon, 0.0, 1.0)}
-        dp1 = {"d": kp * c, "du": 0.0, "v": 0.0, "tau": 0.0}
+        kpc = kp * c
+        lam_tr, lam_p1, lam_lam = self._lam_rates(plastic, skt, dmat, phi1)
+        tan = {}
+        for x in ("d", "du", "v", "tau"):
+            lam_x = lam_tr * dtr[x]
+            if x == "d":
+                lam_x = lam_x + lam_p1 * kpc
+            lam_x = active * lam_x
+            tan["lam_" + x] = lam_x
+            tan["tau_" + x] = c * (dtr[x] - skt * lam_x)
+        self._tangent_common(tan, c, kpc, plastic, skt, lam_lam)
+        return tan
+
+    def _tangent_simple(self, contact, plastic, dv, skt, dmat, phi1):
+        """:meth:`_tangent` when no point re-contacts or separates (frac = 1, nothing partial):
+        the same values with the zero terms left out."""
+        kp, kt = self.kp, self.kt
+        c = contact.astype(float)
+        kpc = kp * c
+        lam_tr, lam_p1, lam_lam = self._lam_rates(plastic, skt, dmat, phi1)
+        lam_d = c * (lam_p1 * kpc)
+        lam_v = c * (lam_tr * kt)
+        lam_tau = c * lam_tr
+        zero = np.zeros_like(c)
+        tan = {"lam_d": lam_d, "tau_d": c * (0.0 - skt * lam_d), "lam_du": zero,
+               "tau_du": zero.copy(), "lam_v": lam_v, "tau_v": c * (kt - skt * lam_v),
+               "lam_tau": lam_tau, "tau_tau": c * (1.0 - skt * lam_tau)}
+        self._tangent_common(tan, c, kpc, plastic, skt, lam_lam)
+        return tan
+
+    def _lam_rates(self, plastic, skt, dmat, phi1):
+        """d lam1 / d (tau_tr, p1, lam0) on the final piece (0, 0, 1 where elastic)."""
+        kt = self.kt
+        sig = skt / kt
         lam_tr = np.where(plastic, sig / dmat, 0.0)
         lam_p1 = np.where(plastic, -phi1 / dmat, 0.0)
         lam_lam = np.where(plastic, kt / dmat, 1.0)
-        tan = {}
-        for x in ("d", "du", "v", "tau"):
-            lam_x = active * (lam_tr * dtr[x] + lam_p1 * dp1[x])
-            tan["lam_" + x] = lam_x
-            tan["tau_" + x] = c * (dtr[x] - sig * kt * lam_x)
+        return lam_tr, lam_p1, lam_lam
+
+    @staticmethod
+    def _tangent_common(tan, c, kpc, plastic, skt, lam_lam):
         tan["lam_lam"] = lam_lam
-        tan["tau_lam"] = c * np.where(plastic, -sig * kt * (lam_lam - 1.0), 0.0)
-        tan["p_d"] = kp * c
-        tan["p_u"] = tan["p_d"].copy()
+        tan["tau_lam"] = c * np.where(plastic, -skt * (lam_lam - 1.0), 0.0)
+        tan["p_d"] = kpc
+        tan["p_u"] = kpc.copy()
         tan["tau_u"] = tan["tau_d"] + tan["tau_du"]
         tan["lam_u"] = tan["lam_d"] + tan["lam_du"]
-        return tan
