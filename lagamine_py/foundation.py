@@ -83,6 +83,9 @@ class Projection:
     dd_de: np.ndarray
 
 
+_PERP = np.array([-1.0, 1.0])     # v[..., ::-1] * _PERP = (-v_y, v_x), the left normal
+
+
 def _perp(v: np.ndarray) -> np.ndarray:
     """Left normal (rotation by +90 degrees) of vectors (..., 2)."""
     return np.stack([-v[..., 1], v[..., 0]], axis=-1)
@@ -118,6 +121,8 @@ class Foundation:
         # end half-lines: origin and direction (derivative w.r.t. s of the end arcs)
         self._start = (X0[0], self.B[0] - 2 * self.C[0])      # F_0(-1), F_0'(-1)
         self._end = (X2[-1], self.B[-1] + 2 * self.C[-1])     # F_last(1), F_last'(1)
+        j = np.arange(self.n_arcs)
+        self._cand_arc = np.concatenate([j, j, [0, self.n_arcs - 1]])  # arc of each candidate
 
     # ------------------------------------------------------------------ geometry
     def points_at(self, c=None) -> np.ndarray:
@@ -130,16 +135,14 @@ class Foundation:
         arc = np.asarray(arc, int)
         s = np.asarray(s, float)
         A, B, C = self.A[arc], self.B[arc], self.C[arc]
-        X = A + B * s[:, None] + C * s[:, None] ** 2
-        dX = B + 2 * C * s[:, None]
-        lo = (arc == 0) & (s < -1)
-        hi = (arc == self.n_arcs - 1) & (s > 1)
-        o, t = self._start
-        X[lo] = o + (s[lo, None] + 1) * t
-        dX[lo] = t
-        o, t = self._end
-        X[hi] = o + (s[hi, None] - 1) * t
-        dX[hi] = t
+        s1 = s[:, None]
+        X = A + B * s1 + C * s1 ** 2
+        dX = B + 2 * C * s1
+        for (o, t), sign, at in ((self._start, -1.0, 0), (self._end, 1.0, self.n_arcs - 1)):
+            beyond = (arc == at) & (s * sign > 1)
+            if beyond.any():                     # on an end half-line: straight continuation
+                X = np.where(beyond[:, None], o + (s1 - sign) * t, X)
+                dX = np.where(beyond[:, None], t, dX)
         if c is not None:
             X = X + np.asarray(c, float)
         return X, dX
@@ -148,35 +151,36 @@ class Foundation:
     def _candidates(self, P, e_u, c):
         """Arc parameters of the intersections of the lines (P, e_u) with every arc and the
         two end half-lines: ``s`` (g, k) and ``arc`` (k,) (NaN where no root / out of range)."""
-        w = _perp(e_u)                                          # (g, 2), w . (X - P) = 0 on the line
-        rel = self.A[None] + c - P[:, None]                      # (g, j, 2)
-        a = np.einsum("gi,ji->gj", w, self.C)
-        b = np.einsum("gi,ji->gj", w, self.B)
-        c0 = np.einsum("gi,gji->gj", w, rel)
+        # w = perp(e_u): w . (X - P) = 0 on the line; its components, without the (g, 2) array
+        w0, w1 = -e_u[:, 1, None], e_u[:, 0, None]
+        a = w0 * self.C[:, 0] + w1 * self.C[:, 1]                  # (g, j)
+        b = w0 * self.B[:, 0] + w1 * self.B[:, 1]
+        rel = self.A + c                                          # (j, 2)
+        c0 = w0 * (rel[:, 0] - P[:, 0, None]) + w1 * (rel[:, 1] - P[:, 1, None])
         with np.errstate(divide="ignore", invalid="ignore"):
             disc = b * b - 4 * a * c0
             sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
             # numerically stable pair; when a -> 0, r2 -> -c0/b (the linear case) and r1 -> inf
             q = -0.5 * (b + np.where(b >= 0, sq, -sq))
-            r1 = q / a
-            r2 = c0 / q
+            roots = np.empty((P.shape[0], 2 * self.n_arcs + 2))   # (g, k)
+            j = self.n_arcs
+            np.divide(q, a, out=roots[:, :j])
+            r2 = np.divide(c0, q, out=roots[:, j:2 * j])
             # b = 0 and disc = 0 with a != 0 (ray through the vertex, tangent): q = 0
-            r2 = np.where((q == 0) & (a != 0), -b / (2 * a), r2)
-            roots = np.concatenate([r1, r2], axis=1)            # (g, 2j)
-            lo = -1 - self.s_tol
-            hi = 1 + self.s_tol
-            roots = np.where((roots >= lo) & (roots <= hi), roots, np.nan)
+            tangent_hit = (q == 0) & (a != 0)
+            if tangent_hit.any():
+                r2[...] = np.where(tangent_hit, -b / (2 * a), r2)
             # end half-lines: w . (o + c + (s -/+ 1) t - P) = 0
-            ends = []
-            for (o, t), sign in ((self._start, -1.0), (self._end, 1.0)):
-                wt = w @ t
-                ds = -np.einsum("gi,gi->g", w, o + c - P) / wt    # offset from the end, along t
-                ok = ds * sign > 0                              # beyond the end only
-                ends.append(np.where(ok, sign + ds, np.nan))
-        s = np.concatenate([roots, np.stack(ends, axis=1)], axis=1)
-        j = np.arange(self.n_arcs)
-        arc = np.concatenate([j, j, [0, self.n_arcs - 1]])
-        return s, arc
+            w = _perp(e_u)
+            for col, ((o, t), sign) in enumerate(((self._start, -1.0), (self._end, 1.0))):
+                wt = w @ t                 # a BLAS product, as before (it may fuse multiply-adds)
+                oc = o + c
+                ds = -(w0[:, 0] * (oc[0] - P[:, 0]) + w1[:, 0] * (oc[1] - P[:, 1])) / wt
+                # beyond the end only
+                roots[:, 2 * j + col] = np.where(ds * sign > 0, sign + ds, np.nan)
+            arcs = roots[:, :2 * j]
+            arcs[~((arcs >= -1 - self.s_tol) & (arcs <= 1 + self.s_tol))] = np.nan
+        return roots, self._cand_arc
 
     def project(self, P, e_u, c=None) -> Projection:
         """Intersect the lines (P, e_u) with the foundation translated by ``c``.
@@ -197,34 +201,54 @@ class Foundation:
         # evaluate only the candidates that exist (most lines cross few arcs): h hits
         hit_g, hit_k = np.nonzero(np.isfinite(s))
         X, dX = self.evaluate(arc[hit_k], s[hit_g, hit_k], c)     # (h, 2)
-        m = _perp(dX)
+        # one hit per line (a single arc, or each line crossing one arc): it is the best one
+        one = hit_g.size == g and np.array_equal(hit_g, np.arange(g))
+        m = dX[:, ::-1] * _PERP                                   # left normals (not unit)
         m_norm = np.linalg.norm(m, axis=-1)
-        e_h = e_u[hit_g]
+        e_h = e_u if one else e_u[hit_g]
         cosn = np.einsum("hi,hi->h", m, e_h) / np.where(m_norm > 0, m_norm, 1.0)
         # d = e_u . (P - Q) / |e_u|^2: the line parameter, so that Q = P - d e_u holds (and the
         # derivatives below) even for a direction that is not exactly unit
-        dist = np.einsum("hi,hi->h", P[hit_g] - X, e_h) / np.einsum("hi,hi->h", e_h, e_h)
+        P_h = P if one else P[hit_g]
+        dist = np.einsum("hi,hi->h", P_h - X, e_h) / np.einsum("hi,hi->h", e_h, e_h)
         ok = (m_norm > 0) & (cosn < -self.cos_min)
-        score = np.full(s.shape, np.inf)
-        score[hit_g, hit_k] = np.where(ok, np.abs(dist), np.inf)
-        where = np.full(s.shape, -1)
-        where[hit_g, hit_k] = np.arange(hit_g.size)
-        rows = np.arange(g)
-        best = np.argmin(score, axis=1)
-        found = np.isfinite(score[rows, best])
-        h = np.where(found, where[rows, best], 0)
-        if hit_g.size == 0:                                       # nothing crossed at all
-            X = dX = m = np.zeros((1, 2))
-            dist = np.zeros(1)
-        Q = np.where(found[:, None], X[h], np.nan)
-        d = np.where(found, dist[h], -np.inf)
-        mb = np.where(found[:, None], m[h], 0.0)
-        tn = dX[h]
-        tn_norm = np.linalg.norm(tn, axis=-1)
-        tangent = np.where(found[:, None], tn / np.where(tn_norm > 0, tn_norm, 1.0)[:, None], np.nan)
-        me = np.where(found, np.einsum("gi,gi->g", mb, e_u), 1.0)
-        dd_dP = mb / me[:, None]
-        dd_de = -np.where(found, d, 0.0)[:, None] * dd_dP
-        return Projection(Q=Q, d=d, arc=np.where(found, arc[best], -1),
-                          s=np.where(found, s[rows, best], np.nan), tangent=tangent,
-                          normal=_perp(tangent), found=found, dd_dP=dd_dP, dd_de=dd_de)
+        score_h = np.where(ok, np.abs(dist), np.inf)
+        if one:
+            best = hit_k
+            found = np.isfinite(score_h)
+            h = np.where(found, np.arange(g), 0)
+            s_best = s[hit_g, hit_k]
+        else:
+            score = np.full(s.shape, np.inf)
+            score[hit_g, hit_k] = score_h
+            where = np.full(s.shape, -1)
+            where[hit_g, hit_k] = np.arange(hit_g.size)
+            rows = np.arange(g)
+            best = np.argmin(score, axis=1)
+            found = np.isfinite(score[rows, best])
+            h = np.where(found, where[rows, best], 0)
+            s_best = s[rows, best]
+            if hit_g.size == 0:                                   # nothing crossed at all
+                X = dX = m = np.zeros((1, 2))
+                dist = m_norm = np.zeros(1)
+        if found.all():                       # every line met the foundation: no masking
+            Q, d, mb, tn = X[h], dist[h], m[h], dX[h]
+            tangent = tn / np.where(m_norm[h] > 0, m_norm[h], 1.0)[:, None]
+            me = np.einsum("gi,gi->g", mb, e_u)
+            dd_dP = mb / me[:, None]
+            dd_de = -d[:, None] * dd_dP
+            arc_best = arc[best]
+        else:
+            f1 = found[:, None]
+            Q = np.where(f1, X[h], np.nan)
+            d = np.where(found, dist[h], -np.inf)
+            mb = np.where(f1, m[h], 0.0)
+            tn_norm = m_norm[h]                                   # |dX| = |m|
+            tangent = np.where(f1, dX[h] / np.where(tn_norm > 0, tn_norm, 1.0)[:, None], np.nan)
+            me = np.where(found, np.einsum("gi,gi->g", mb, e_u), 1.0)
+            dd_dP = mb / me[:, None]
+            dd_de = -np.where(found, d, 0.0)[:, None] * dd_dP
+            arc_best = np.where(found, arc[best], -1)
+            s_best = np.where(found, s_best, np.nan)
+        return Projection(Q=Q, d=d, arc=arc_best, s=s_best, tangent=tangent,
+                          normal=tangent[:, ::-1] * _PERP, found=found, dd_dP=dd_dP, dd_de=dd_de)
