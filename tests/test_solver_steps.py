@@ -290,3 +290,54 @@ def test_progress_plain_lines_when_not_a_tty(tmp_path):
     prog.end()
     assert stream.getvalue().startswith("step 1/2 LOAD: t 0.5/1  inc 3  it 2")
     assert stream.getvalue().count("\n") == 1 and "\r" not in stream.getvalue()
+
+
+# -- the first iterate of an increment (EXTRAPOLATION) ---------------------------------------
+
+def test_linear_extrapolation_is_exact_on_a_linear_ramp(tmp_path):
+    """Linear springs under a linear ramp: from the second increment of a step the extrapolated
+    first iterate is the solution, so those increments converge without a linear solve (0
+    iterations); without extrapolation each takes one.  u = F(t) / k exactly either way."""
+    for mode, expected in (("LINEAR", [1, 0, 0, 0]), ("NONE", [1, 1, 1, 1])):
+        model = make_model(1, [step(dt0=0.25, dt_max=0.25, cloads=[cload(0, 1, 4.0)],
+                                    boundaries=[bc(0, 2, 2, 0.5)],
+                                    controls={"EXTRAPOLATION": mode, "GROWTH": 1.0})])
+        out, rec = solve(tmp_path / mode, model, grounded([2.0], ky=3.0))
+        assert out.status == 0
+        assert [r.iterations for r in rec.results] == expected, mode
+        for r in rec.results:
+            assert r.u[0, 0] == pytest.approx(2.0 * r.step_time, rel=1e-12)
+            assert r.u[0, 1] == pytest.approx(0.5 * r.step_time, rel=1e-12)
+
+
+def test_extrapolation_rule_and_step_start():
+    """u + (dt / dt_last) du_last; nothing to extrapolate at the start of a step or with NONE."""
+    from lagamine_py.solver.steps import _extrapolated
+    u, du = np.array([1.0, 2.0]), np.array([0.5, -1.0])
+    assert np.allclose(_extrapolated(u, (du, 0.2), 0.1, "LINEAR"), [1.25, 1.5])
+    assert _extrapolated(u, None, 0.1, "LINEAR") is None
+    assert _extrapolated(u, (du, 0.2), 0.1, "NONE") is None
+
+
+def test_extrapolation_does_not_cross_steps(tmp_path):
+    """Step 2 reverses the load: its first increment starts from the converged state (as the
+    iteration count of a linear problem cannot tell, the first iterate is recorded)."""
+    from lagamine_py.solver import newton
+    starts = []
+    orig = newton.solve_increment
+
+    def spy(*a, **k):
+        starts.append(k.get("u_start"))
+        return orig(*a, **k)
+
+    model = make_model(1, [step("A", dt0=0.5, dt_max=0.5, cloads=[cload(0, 1, 4.0)]),
+                           step("B", dt0=0.5, dt_max=0.5, cloads=[cload(0, 1, -4.0)])])
+    import lagamine_py.solver.steps as steps_mod
+    steps_mod.solve_increment = spy
+    try:
+        out, rec = solve(tmp_path, model, grounded([2.0]))
+    finally:
+        steps_mod.solve_increment = orig
+    assert out.status == 0
+    assert [s is None for s in starts] == [True, False, True, False]
+    assert rec.results[-1].u[0, 0] == pytest.approx(-2.0, rel=1e-12)

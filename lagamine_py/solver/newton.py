@@ -100,7 +100,7 @@ class Converged:
 
 def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict], ctx,
                     u_c: np.ndarray, f_ext: np.ndarray, settings: Settings,
-                    floor: float = 0.0) -> Converged:
+                    floor: float = 0.0, u_start: np.ndarray | None = None) -> Converged:
     """Solve one increment.
 
     Parameters
@@ -116,10 +116,13 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     u_c : (c,) imposed values at the end of the increment, at ``free.constrained``.
     f_ext : (ndof,) external nodal forces at the end of the increment.
     floor : absolute floor of the force scale.
+    u_start : (ndof,) first iterate (the step controller's extrapolation), default ``u_old``
+        (translated with a moving foundation, see :func:`_foundation_shift`).  Its constrained
+        entries are corrected to ``u_c`` by the first iteration like any imposed increment.
     """
     c = free.constrained
-    u = np.array(u_old, float)
-    shift = _foundation_shift(ctx, u.size)
+    u = np.array(u_old if u_start is None else u_start, float)
+    shift = _foundation_shift(ctx, u.size) if u_start is None else None
     if shift is not None:
         u += shift        # start translated with a moving foundation (see _foundation_shift)
     du_imposed = np.zeros_like(u)

@@ -134,6 +134,7 @@ class Controller:
         settings = Settings.from_controls(controls)
         try:
             solver = make_solver(controls["SOLVER"])
+            self.problem.set_kernel(controls["KERNEL"])
         except KeyError as exc:
             hint = " (SOLVER=PARDISO needs the optional package pypardiso)" \
                 if controls["SOLVER"] == "PARDISO" else ""
@@ -148,6 +149,9 @@ class Controller:
                                self.surfaces, self.foundations)
             t, inc = 0.0, 0
             dt = min(step.dt0, step.dt_max, T)
+        # the last converged increment of this step (displacement change, dt): the predictor
+        # of the next one (EXTRAPOLATION=LINEAR); none at the start of a step
+        last = resume.get("last") if resume is not None else None
         free = FreeDofs(self.problem.pattern, loads.constrained)
         log.info("step %d %s: period %g, dt0 %g, %d constrained DOFs", si + 1, step.name, T,
                  step.dt0, len(loads.constrained))
@@ -162,7 +166,8 @@ class Controller:
             cutbacks = 0
             while True:
                 try:
-                    conv = self._attempt(step, loads, free, solver, settings, t, dt_try)
+                    start = _extrapolated(self.u, last, dt_try, controls["EXTRAPOLATION"])
+                    conv = self._attempt(step, loads, free, solver, settings, t, dt_try, start)
                     break
                 except (ConvergenceFailure, SingularMatrixError) as exc:
                     reason = self._failure_text(exc)
@@ -182,16 +187,17 @@ class Controller:
             dt = dt_try
             inc += 1
             t = T if T - (t + dt_try) <= 1e-12 * T else t + dt_try
+            last = (conv.u - self.u, dt_try)
             self._commit(conv, loads, free, t)
             self._hand_out(si, step, loads, inc, t, dt_try, conv, cutbacks, T)
             if conv.iterations <= controls["EASY"] and cutbacks == 0:
                 dt = min(dt * controls["GROWTH"], step.dt_max)
-            self._save_restart(si, loads, t, dt, inc)
+            self._save_restart(si, loads, t, dt, inc, last)
         self.reached = loads.reached(model)
         self.time_offset += T
         self.progress.end()
 
-    def _attempt(self, step, loads: StepLoads, free, solver, settings, t, dt):
+    def _attempt(self, step, loads: StepLoads, free, solver, settings, t, dt, start=None):
         model, problem = self.model, self.problem
         t_new = t + dt
         ctx = StepContext(nlgeom=bool(step.nlgeom), t_old=self.time_offset + t,
@@ -203,7 +209,7 @@ class Controller:
         u_c = loads.bc_values(model, t_new)
         log.info("  increment at step time %g, dt %g", t_new, dt)
         conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
-                               settings, floor=FLOOR_FRACTION * self.force_ref)
+                               settings, floor=FLOOR_FRACTION * self.force_ref, u_start=start)
         conv.f_ext, conv.ctx = f_ext, ctx
         return conv
 
@@ -279,13 +285,15 @@ class Controller:
             w.failed_attempt(info)
 
     # -- restart ---------------------------------------------------------------------------
-    def _save_restart(self, si, loads: StepLoads, t, dt, inc) -> None:
+    def _save_restart(self, si, loads: StepLoads, t, dt, inc, last=None) -> None:
         data = {"deck": np.array(self.deck_path), "ndof": np.array(self.problem.ndof),
                 "ngroups": np.array(len(self.problem.groups)), "step": np.array(si),
                 "t": np.array(t), "dt": np.array(dt), "inc": np.array(inc),
                 "total_increments": np.array(self.total_increments),
                 "time_offset": np.array(self.time_offset), "force_ref": np.array(self.force_ref),
                 "u": self.u, "reaction": self.reaction}
+        if last is not None:            # the predictor of the next increment, for a same-path resume
+            data["last_du"], data["last_dt"] = last[0], np.array(last[1])
         data.update(rs.pack_states(self.states))
         data.update(loads.to_arrays())
         rs.save(self.outdir, data)
@@ -307,8 +315,25 @@ class Controller:
             self.reached = loads.reached(self.model)
             self.time_offset += loads.period
             return {"step": si + 1, "loads": None}
+        last = (data["last_du"].copy(), float(data["last_dt"])) if "last_du" in data else None
         return {"step": si, "loads": loads, "t": t, "dt": float(data["dt"]),
-                "inc": int(data["inc"])}
+                "inc": int(data["inc"]), "last": last}
+
+
+def _extrapolated(u: np.ndarray, last, dt: float, mode: str) -> np.ndarray | None:
+    """First iterate of an increment of ``dt``: ``u + (dt / dt_last) du_last`` (LINEAR), from the
+    last converged increment ``last = (du_last, dt_last)`` of the same step; None (start from
+    ``u``) with NONE or at the start of a step.
+
+    Why: Newton's first iteration otherwise starts with every contact point and material point
+    in the elastic (stick) state of a zero increment, and the slip zone of the previous increment
+    is then rediscovered one front point per iteration (10-15 iterations an increment on fine
+    meshes, cut-backs when the front oscillates).  Linear extrapolation (Abaqus's default for
+    static steps) starts the slipping points slipping."""
+    if mode != "LINEAR" or last is None or not last[1] > 0:
+        return None
+    du, dt_last = last
+    return u + (dt / dt_last) * du
 
 
 def _resume_or_none(resume):
