@@ -33,6 +33,8 @@ def newton_tail_ok(history) -> bool:
     1e-8, well above the floor, with an order near 1: it fails.
     """
     r = np.asarray(history, float)
+    if len(r) == 1:                   # converged at the predictor: no Newton step to judge
+        return True
     if r[-1] <= ROUNDOFF:             # relative to the force scale, like the tolerance
         return True
     r = r / r.max()
@@ -44,7 +46,7 @@ def newton_tail_ok(history) -> bool:
 
 def assert_newton_tail(cap, step=None):
     hist = [r.residual_history for r in cap.results if step is None or r.step == step]
-    assert hist
+    assert any(len(h) >= 2 for h in hist), "no increment took a Newton step"
     bad = [" ".join(f"{h:.1e}" for h in rh) for rh in hist if not newton_tail_ok(rh)]
     assert not bad, bad
 
