@@ -168,7 +168,9 @@ class ContactGroup(Group):
         self._dNg = np.tile(self.dN, (nf, 1))                     # (g, a)
         # R A_t (g, 2, nd): d (R t) / d x_J, the moving normal's part of the geometric tangent
         self._RAt = np.tile(np.einsum("ij,qjJ->qiJ", _R, At), (nf, 1, 1))
-        self._P0, self._t0 = self._at_points(self.coords0[self.face_nodes])   # reference face
+        self._x0 = self.coords0[self.face_nodes]                  # (f, a, 2) reference face
+        self._P0, self._t0 = self._at_points(self._x0)
+        self._jac_tol = 1e-14 * max(1.0, float(np.abs(self.coords0).max(initial=1.0)))
         self._start_cache = None          # see _start_penetration
         try:
             sig = inspect.signature(law.update)
@@ -183,7 +185,7 @@ class ContactGroup(Group):
 
     def _face_x(self, u) -> np.ndarray:
         """Current face node positions (f, a, 2)."""
-        return self.coords0[self.face_nodes] + np.asarray(u, float)[self.face_nodes]
+        return self._x0 + np.asarray(u, float)[self.face_nodes]
 
     def _at_points(self, x) -> tuple[np.ndarray, np.ndarray]:
         """P (g, 2) and t = dx/dxi (g, 2) from face node positions x (f, a, 2)."""
@@ -235,11 +237,16 @@ class ContactGroup(Group):
         d = np.where(np.abs(d) <= self._touch_tol, 0.0, d)
         if scale == 0.0:
             return d, np.zeros((self.ng, self.nd)), pr
-        Dd = scale * self._kron(self._Ng, np.asarray(pr.dd_dP, float))
+        Dd = self._kron(self._Ng, np.asarray(pr.dd_dP, float))
+        if scale != 1.0:
+            Dd *= scale
         if geo:                                                   # the normal turns with the face
-            dd_dt = (np.asarray(pr.dd_de, float)[:, :, None] * de).sum(axis=1)
-            Dd += scale * self._kron(self._dNg, dd_dt)
-        Dd[~pr.found] = 0.0
+            dd_de = np.asarray(pr.dd_de, float)
+            dd_dt = dd_de[:, 0, None] * de[:, 0, :] + dd_de[:, 1, None] * de[:, 1, :]
+            Dd_t = self._kron(self._dNg, dd_dt)
+            Dd += Dd_t if scale == 1.0 else scale * Dd_t
+        if not pr.found.all():
+            Dd[~pr.found] = 0.0
         return d, Dd, pr
 
     def _start_penetration(self, xo, co, geo):
@@ -297,13 +304,13 @@ class ContactGroup(Group):
         frozen_open = None if frozen is None else (frozen == OPEN)
 
         d_prev = self._start_penetration(xo, co, geo)          # start: fixed w.r.t. u_new
-        Dd_prev = np.zeros((self.ng, self.nd))
         d_start = d_prev
         # penetration at the end (the last sub-interval's); in between it moves linearly (see doc)
         P_end, t_end = self._axes_t(xn, geo)
         d_end, Dd_end, _ = self._penetration_at(P_end, t_end, cn, 1.0 if tangent else 0.0, geo)
-        st = {k: np.array(v, copy=True) for k, v in state.items()}
-        D = {k: np.zeros((self.ng, self.nd)) for k in _OUT}
+        st = state
+        D = dict.fromkeys(_OUT)                # None: a derivative known to be zero
+        Dd_prev = None
         dc = (cn - co) / nsub
         dP = self._interp(self.N, dx) / nsub
         rel = dP - dc
@@ -321,12 +328,16 @@ class ContactGroup(Group):
             du = d_k - d_prev
             new, tan = self._call_law(st, d_k, du, dv, frozen)
             if tangent:
-                Ddv = self._kron(self._Ng, e_v) / nsub
+                Ddv = self._kron(self._Ng, e_v)
+                if nsub != 1:
+                    Ddv /= nsub
                 if geo:
                     # sum_i (rel_i dev_ij) A_t: the i terms summed last, as the former einsum
-                    Ddv += a_th * (self._kron(self._dNg, rel[:, 0, None] * dev[:, 0, :])
-                                   + self._kron(self._dNg, rel[:, 1, None] * dev[:, 1, :]))
-                D = self._chain(tan, D, Dd_k - Dd_prev, Dd_prev, Ddv)
+                    turn = (self._kron(self._dNg, rel[:, 0, None] * dev[:, 0, :])
+                            + self._kron(self._dNg, rel[:, 1, None] * dev[:, 1, :]))
+                    Ddv += turn if a_th == 1.0 else a_th * turn
+                Ddu = Dd_k if Dd_prev is None else Dd_k - Dd_prev
+                D = self._chain(tan, D, Ddu, Dd_prev, Ddv, lam=k < nsub)
             if frozen_open is not None and frozen_open.any():
                 new = dict(new)
                 for key in ("p", "tau"):
@@ -337,25 +348,40 @@ class ContactGroup(Group):
                 status = np.asarray(new["status"])
                 new["status"] = np.where(frozen_open, OPEN, status).astype(status.dtype)
                 for key in _OUT:
-                    D[key][frozen_open] = 0.0
+                    if D[key] is not None:
+                        D[key][frozen_open] = 0.0
             st = new
             d_prev, Dd_prev = d_k, Dd_k
+        # the result never shares arrays with the committed state (a law may pass some through)
+        st = {k: (v.copy() if v is state.get(k) else v) for k, v in st.items()}
+        for key in ("p", "tau"):
+            if tangent and D[key] is None:
+                D[key] = np.zeros((self.ng, self.nd))
         return st, D, P_end, t_end
 
-    @staticmethod
-    def _chain(tan, D, Ddu, Dd_old, Ddv):
-        """Forward-mode step: derivatives of (p, tau, lam) after a sub-interval."""
+    def _chain(self, tan, D, Ddu, Dd_old, Ddv, lam=True):
+        """Forward-mode step: derivatives of (p, tau, lam) after a sub-interval.  Inputs and
+        outputs known to be zero are None (the first sub-interval starts from zeros); ``lam``
+        False skips D lam (not needed after the last sub-interval)."""
         out = {}
-        for o in _OUT:
-            acc = np.zeros_like(Ddu)
-            ins = {"u": Ddu, "v": Ddv, "d": Dd_old, "p": D["p"], "tau": D["tau"], "lam": D["lam"]}
+        ins = {"u": Ddu, "v": Ddv, "d": Dd_old, "p": D["p"], "tau": D["tau"], "lam": D["lam"]}
+        for o in _OUT if lam else _OUT[:2]:
+            acc = None
             for i, Dx in ins.items():
+                if Dx is None:
+                    continue
                 c = tan.get(f"{o}_{i}")
                 if c is None and o == "p" and i == "d":
                     c = tan.get("p_u")
                 if c is not None:
-                    acc += np.asarray(c, float)[:, None] * Dx
+                    term = np.asarray(c, float)[:, None] * Dx
+                    if acc is None:
+                        acc = term
+                    else:
+                        acc += term
             out[o] = acc
+        if not lam:
+            out["lam"] = None
         return out
 
     def _weights(self, P, geo):
@@ -381,9 +407,9 @@ class ContactGroup(Group):
         f = self._Ng[:, :, None] * vec[:, None, :] * wt[:, None, None]          # (g, a, i)
         f = f.reshape(self.nf, self.nq, self.nd).sum(axis=1)
         failure = None
-        if np.any(jac <= 1e-14 * max(1.0, float(np.abs(self.coords0).max(initial=1.0)))):
+        if (jac <= self._jac_tol).any():
             failure = f"contact {self.name}: degenerate face (zero Jacobian)"
-        elif not (np.all(np.isfinite(f)) and np.all(np.isfinite(p)) and np.all(np.isfinite(tau))):
+        elif not (np.isfinite(f).all() and np.isfinite(p).all() and np.isfinite(tau).all()):
             failure = f"contact {self.name}: non-finite contact stresses"
         else:
             failure = self._inadmissible(st, ctx)

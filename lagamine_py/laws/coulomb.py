@@ -263,12 +263,12 @@ class Coulomb(ContactLaw):
         element reports these points as a failure of the increment (the solver cuts back, then
         stops with exit 3), so the wrong answer is never passed on silently."""
         tau = np.asarray(state["tau"], float)
-        b, _ = self.adhesion(state["lam"])
-        phi, _ = self.friction(state["lam"])
+        b, _, phi, _ = self._hardening(np.asarray(state["lam"], float))
         p = np.asarray(state["p"], float)
         radius = b + phi * p
-        tol = _ADMISSIBLE_RTOL * (radius + np.abs(tau) + p) + 1e-12 * self.kt
-        return np.abs(tau) - radius > tol
+        abs_tau = np.abs(tau)
+        tol = _ADMISSIBLE_RTOL * (radius + abs_tau + p) + 1e-12 * self.kt
+        return abs_tau - radius > tol
 
     def _hardening(self, lam):
         """``B, B', phi, phi'`` at ``lam`` (:meth:`adhesion`, :meth:`friction`), as plain floats
