@@ -28,6 +28,9 @@ def _parser() -> argparse.ArgumentParser:
                      help="resume the run whose output directory is OUT from its last converged increment")
     run.add_argument("--solver", choices=("AUTO", "SPLU", "PARDISO"),
                      help="sparse linear solver (overrides the deck's *CONTROLS SOLVER)")
+    run.add_argument("--kernel", choices=("AUTO", "NUMPY", "NUMBA"),
+                     help="solid-element kernel (overrides the deck's *CONTROLS KERNEL): NUMBA "
+                          "needs the fast extra (numba), AUTO uses it when installed")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                      help="override a *PARAMETER value of the deck (repeatable)")
@@ -139,6 +142,9 @@ def _cmd_run(args) -> int:
     if args.solver:
         for step in model.steps:
             step.controls["SOLVER"] = args.solver
+    if args.kernel:
+        for step in model.steps:
+            step.controls["KERNEL"] = args.kernel
     _show_advice()
     outcome = run(model, outdir, restart=args.restart is not None, deck_path=Path(deck),
                   progress=not args.quiet)

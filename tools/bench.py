@@ -6,6 +6,7 @@ Sub-commands (run from the repository root, in the project's venv)::
     python tools/bench.py scale --sizes 40x20 80x40 160x80 320x160 [--solver AUTO] [--json F]
     python tools/bench.py one NX NY [--solver AUTO] [--json F]     # one size (scale runs this)
     python tools/bench.py assembly [--nx 160 --ny 80]              # us per element / Gauss point
+                                                                    # (NumPy and numba kernels)
     python tools/bench.py solvers [--sizes 20x10 40x20 ...]        # SPLU vs PARDISO crossover
     python tools/bench.py startup                                   # lagamine-py --help
     python tools/bench.py report --json F [--png P]                 # markdown table + plot
@@ -121,6 +122,8 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     labels = {"solid": "bulk", "contact": "contact", "pressure": "pressure"}
     for g, kind in zip(problem.groups, problem.kinds):
         timers.wrap(g, "compute", labels[kind])
+        if hasattr(g, "compute_into"):          # the fused numba kernel: compute + scatter
+            timers.wrap(g, "compute_into", labels[kind])
     timers.wrap(problem.pattern, "assemble_data", "scatter")
     timers.wrap(problem.pattern, "group_vector", "scatter")
     orig_kff = FreeDofs.kff
@@ -242,11 +245,14 @@ def _best(fn, repeat: int, clock=time.perf_counter) -> float:
 
 def bench_assembly(nx: int = 160, ny: int = 80, repeat: int = 7) -> dict:
     """Microseconds per element of the bulk Q8 3x3 Ramberg-Osgood group (compute with tangent,
-    then scatter into the CSR pattern), small strain and NLGEOM, every Gauss point plastic; and
-    microseconds per contact Gauss point of the press-slide contact group, pressed."""
+    then scatter into the CSR pattern), small strain and NLGEOM, every Gauss point plastic; the
+    same through the fused numba kernel (``compute_into``: compute and scatter in one pass,
+    after a warm-up call that compiles or loads it) when numba is installed; and microseconds
+    per contact Gauss point of the press-slide contact group, pressed."""
     from lagamine_py.elements.base import StepContext
     from lagamine_py.registry import get
     from lagamine_py.solver.pattern import Pattern
+    from lagamine_py.solver.problem import numba_available
 
     xy, conn = structured_q8(nx, ny)
     law = get("laws", "RAMBERG_OSGOOD")(E=E_STEEL, NU=0.3, SIGMA0=250.0, ALPHA=0.5, N=10.0)
@@ -256,7 +262,8 @@ def bench_assembly(nx: int = 160, ny: int = 80, repeat: int = 7) -> dict:
     rng = np.random.default_rng(0)
     u_old = np.zeros_like(xy)
     u = np.c_[0.002 * xy[:, 0], -0.004 * xy[:, 1]] + 1e-4 * rng.standard_normal(xy.shape)
-    out = {"elements": len(conn), "dofs": 2 * len(xy)}
+    ne, nq = len(conn), group.nq
+    out = {"elements": ne, "dofs": 2 * len(xy), "numba": numba_available()}
     for nlgeom in (False, True):
         ctx = StepContext(nlgeom=nlgeom, t_old=0.0, t_new=1.0, load_factor=1.0,
                           foundation_old={}, foundation_new={})
@@ -269,13 +276,34 @@ def bench_assembly(nx: int = 160, ny: int = 80, repeat: int = 7) -> dict:
         c_s = _best(lambda: (pattern.assemble_data([res.K]), pattern.group_vector(0, res.f)),
                     repeat, time.process_time)
         key = "nlgeom" if nlgeom else "small"
-        out[key] = {"compute_us": 1e6 * t_c / len(conn), "scatter_us": 1e6 * t_s / len(conn),
-                    "total_us": 1e6 * (t_c + t_s) / len(conn), "plastic_fraction": plastic,
-                    "per_gauss_point_us": 1e6 * (t_c + t_s) / (len(conn) * group.nq),
-                    "cpu_total_us": 1e6 * (c_c + c_s) / len(conn),
-                    "cpu_per_gauss_point_us": 1e6 * (c_c + c_s) / (len(conn) * group.nq)}
+        out[key] = {"compute_us": 1e6 * t_c / ne, "scatter_us": 1e6 * t_s / ne,
+                    "total_us": 1e6 * (t_c + t_s) / ne, "plastic_fraction": plastic,
+                    "per_gauss_point_us": 1e6 * (t_c + t_s) / (ne * nq),
+                    "cpu_total_us": 1e6 * (c_c + c_s) / ne,
+                    "cpu_per_gauss_point_us": 1e6 * (c_c + c_s) / (ne * nq)}
+        if out["numba"]:
+            out[key].update(_bench_fused(group, pattern, u, u_old, state, ctx, repeat))
     out["contact"] = _bench_contact(repeat)
     return out
+
+
+def _bench_fused(group, pattern, u, u_old, state, ctx, repeat: int) -> dict:
+    """The fused numba kernel on the same group: zeroed CSR data and force vector, compute and
+    scatter (what Problem.evaluate does for the group); us per element and per Gauss point."""
+    def fused():
+        data, f = np.zeros(pattern.nnz), np.zeros(pattern.ndof)
+        return group.compute_into(u, u_old, state, ctx, True, data, f, pattern.positions[0])
+
+    t0 = time.perf_counter()
+    fused()                                   # compiles, or loads from numba's cache
+    first = time.perf_counter() - t0
+    ne, nq = len(group.conn), group.nq
+    t = _best(fused, repeat)
+    c = _best(fused, repeat, time.process_time)
+    return {"numba_first_call_s": first, "numba_total_us": 1e6 * t / ne,
+            "numba_per_gauss_point_us": 1e6 * t / (ne * nq),
+            "numba_cpu_total_us": 1e6 * c / ne,
+            "numba_cpu_per_gauss_point_us": 1e6 * c / (ne * nq)}
 
 
 def _bench_contact(repeat: int, nx: int = 320, ny: int = 4) -> dict:

@@ -5,9 +5,10 @@ Usage (from anywhere)::
     python tools/make_references.py                 # every deck at the top level of decks/
     python tools/make_references.py press_slide hertz.dat decks/tube_hydroform.dat
 
-Each deck is run by ``python -m lagamine_py run DECK -o TMP -q`` in a fresh process, from the
-repository root (so the package of this checkout is the one that runs).  The text tables that
-``lagamine-py compare`` reads (``contact.csv``, ``contact_totals.csv``, ``reactions.csv``,
+Each deck is run by ``python -m lagamine_py run DECK -o TMP -q --kernel NUMPY`` (the NumPy
+solid kernel, the reference implementation) in a fresh process, from the repository root (so
+the package of this checkout is the one that runs).  The text tables that ``lagamine-py
+compare`` reads (``contact.csv``, ``contact_totals.csv``, ``reactions.csv``,
 ``displacements.csv``: those the run wrote) are copied into ``decks/reference/<deck>/``, which is
 emptied first so that no stale table survives, next to a one-line ``PROVENANCE``: the command, the
 git commit (``+dirty`` when the package, the decks or setup.cfg differ from it), the date, Python,
@@ -90,7 +91,8 @@ def _increments(sta: Path) -> int:
 
 def run_deck(deck: Path, outdir: Path) -> tuple[int, float, str]:
     """Run one deck in a fresh process; (exit status, wall seconds, last stderr line)."""
-    cmd = [sys.executable, "-m", "lagamine_py", "run", str(deck), "-o", str(outdir), "-q"]
+    cmd = [sys.executable, "-m", "lagamine_py", "run", str(deck), "-o", str(outdir), "-q",
+           "--kernel", "NUMPY"]     # the reference kernel (tests/test_regression.py pins it)
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
     wall = time.perf_counter() - t0

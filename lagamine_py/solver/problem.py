@@ -9,6 +9,7 @@ assembles them.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from importlib import import_module
 from typing import Any
 
 import numpy as np
@@ -17,6 +18,22 @@ from .newton import GroupFailure
 from .pattern import Pattern
 
 SOLID, CONTACT, PRESSURE = "solid", "contact", "pressure"
+KERNELS = ("AUTO", "NUMPY", "NUMBA")
+
+
+def numba_available() -> bool:
+    """True when the numba kernels import (numba installed and working); checked once."""
+    global _NUMBA
+    if _NUMBA is None:
+        try:
+            import_module("lagamine_py.elements.numba_kernels")
+            _NUMBA = True
+        except ImportError:
+            _NUMBA = False
+    return _NUMBA
+
+
+_NUMBA: bool | None = None
 
 
 @dataclass
@@ -46,6 +63,7 @@ class Problem:
     foundations: dict[str, Any]
     pattern: Pattern
     warnings: list[str] = field(default_factory=list)   # model advice, logged when the run starts
+    kernel: str = "AUTO"        # solid-group kernel: AUTO / NUMPY / NUMBA (see set_kernel)
 
     @property
     def ndof(self) -> int:
@@ -57,17 +75,50 @@ class Problem:
     def indices(self, kind: str) -> list[int]:
         return [k for k, kd in enumerate(self.kinds) if kd == kind]
 
+    def set_kernel(self, kernel: str) -> None:
+        """Choose how solid groups are computed: ``NUMPY`` (``compute``, the reference),
+        ``NUMBA`` (the fused compute + scatter kernel, ``compute_into``; raises KeyError when
+        numba is not installed) or ``AUTO`` (numba where it imports).  Either way a group the
+        kernel does not support (a law plugin, a non-solid group) goes through NumPy."""
+        kernel = str(kernel).upper()
+        if kernel not in KERNELS:
+            raise KeyError(f"KERNEL={kernel}: expected one of {', '.join(KERNELS)}")
+        if kernel == "NUMBA" and not numba_available():
+            raise KeyError("KERNEL=NUMBA needs the optional package numba "
+                           "(pip install 'lagamine_py[fast]')")
+        self.kernel = kernel
+
+    def fused(self, k: int) -> bool:
+        """Whether group ``k`` is computed by its fused kernel under the current setting."""
+        if self.kernel == "NUMPY" or not hasattr(self.groups[k], "compute_into"):
+            return False
+        cache = self.__dict__.setdefault("_fused_support", {})
+        if k not in cache:
+            cache[k] = bool(numba_available() and self.groups[k].kernel_supported())
+        return cache[k]
+
     def evaluate(self, u_new: np.ndarray, u_old: np.ndarray, states: list[dict], ctx,
                  tangent: bool = True) -> Evaluation:
         """Compute every group at ``u_new`` (ndof,) from the committed ``states``; assemble.
 
+        Groups with a fused kernel (:meth:`fused`) add their tangent into the CSR data and their
+        force into their own global vector as they compute (``results[k].K`` is then None);
+        the others return (e, nd, nd) blocks scattered afterwards, in group order.
+
         Raises :class:`~lagamine_py.solver.newton.GroupFailure` when a group reports a failure
         or raises an ``ArithmeticError`` (``ReturnMappingError``, floating-point errors)."""
         un, uo = u_new.reshape(-1, 2), u_old.reshape(-1, 2)
-        results = []
+        results, vectors = [], {}
+        fused = [self.fused(k) for k in range(len(self.groups))]
+        data = np.zeros(self.pattern.nnz) if tangent and any(fused) else None
         for k, g in enumerate(self.groups):
             try:
-                r = g.compute(un, uo, states[k], ctx, tangent)
+                if fused[k]:
+                    vectors[k] = np.zeros(self.ndof)
+                    r = g.compute_into(un, uo, states[k], ctx, tangent, data, vectors[k],
+                                       self.pattern.positions[k])
+                else:
+                    r = g.compute(un, uo, states[k], ctx, tangent)
             except ArithmeticError as exc:
                 raise GroupFailure(f"{self.group_names[k]}: {exc}") from exc
             if r.failure:
@@ -76,10 +127,15 @@ class Problem:
         f_int = np.zeros(self.ndof)
         scale = 0.0
         for k, r in enumerate(results):
-            fk = self.pattern.group_vector(k, r.f)
+            fk = vectors[k] if fused[k] else self.pattern.group_vector(k, r.f)
             f_int += fk
             scale = max(scale, float(np.linalg.norm(fk)))
-        data = self.pattern.assemble_data([r.K for r in results]) if tangent else None
+        if tangent and data is None:
+            data = self.pattern.assemble_data([r.K for r in results])
+        elif tangent:           # after the fused groups (solids come first), as assemble_data
+            for k, r in enumerate(results):
+                if not fused[k] and r.K is not None and self.pattern.positions[k].size:
+                    np.add.at(data, self.pattern.positions[k], np.asarray(r.K, float).ravel())
         return Evaluation(f_int, data, [r.state for r in results], scale, results)
 
     def check_tangent(self, u_new: np.ndarray, u_old: np.ndarray, states: list[dict], ctx,
