@@ -322,11 +322,22 @@ class PardisoSolver(LinearSolver):
                 self.iparm[:] = 0            # PARDISO's defaults for this matrix type
                 self._pardiso(11, self._data, self._ia, self._ja)
                 self.analyses += 1
+                self._no_refinement()
             self._pardiso(22, self._data, self._ia, self._ja)
             self.factorizations += 1
         except _PardisoError as exc:
             self._release()
             raise SingularMatrixError(_suspects(A), f"PARDISO: {exc}") from None
+
+    def _no_refinement(self) -> None:
+        """Keep the defaults the analysis filled in (``iparm[0] = 1``) but no iterative
+        refinement (``iparm[7] = 0``).  MKL's non-symmetric default is 2 steps on *every* solve,
+        i.e. three substitutions and two products: 2.4x the solve time (43.5 against 17.8 ms at
+        77k DOFs) for a residual of 7e-14 instead of 1.2e-13, which Newton does not need.  With
+        0, PARDISO still refines by itself when it had to perturb pivots, and :meth:`solve`'s
+        residual test stays the guard against a singular matrix."""
+        self.iparm[0] = 1
+        self.iparm[7] = 0
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         b = np.array(b, dtype=np.float64, order="F")
