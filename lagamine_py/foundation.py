@@ -111,6 +111,10 @@ class Foundation:
             raise ValueError(f"foundation {name!r}: needs an odd number >= 3 of points, got {m}")
         self.points = pts
         self.name = name
+        # project() through the numba kernel (lagamine_py.laws.coulomb_numba) when numba
+        # imports; False forces the NumPy path, the reference.  Exact type only.
+        self.kernel_supported = type(self) is Foundation
+        self.use_kernel = self.kernel_supported
         self.s_tol = float(s_tol)
         self.cos_min = float(cos_min)
         X0, X1, X2 = pts[0:-1:2], pts[1::2], pts[2::2]
@@ -196,6 +200,11 @@ class Foundation:
         P = np.atleast_2d(np.asarray(P, float))
         e_u = np.atleast_2d(np.asarray(e_u, float))
         c = np.zeros(2) if c is None else np.asarray(c, float)
+        if self.use_kernel and P.ndim == 2 and e_u.shape == P.shape:
+            from .laws.coulomb import _numba_kernels
+            kernels = _numba_kernels()
+            if kernels is not None:
+                return Projection(**kernels.project_points(self, P, e_u, c))
         g = P.shape[0]
         s, arc = self._candidates(P, e_u, c)                      # (g, k), (k,)
         # evaluate only the candidates that exist (most lines cross few arcs): h hits

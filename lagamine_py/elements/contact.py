@@ -180,6 +180,14 @@ class ContactGroup(Group):
             self._law_frozen = False
 
     # ----------------------------------------------------------------- helpers
+    def set_kernel(self, numba: bool) -> None:
+        """Let the law and the foundation use their numba kernels (``numba`` True: where they
+        have one, ``kernel_supported``, and numba imports) or force their NumPy path, the
+        reference (False).  ``Problem.set_kernel`` calls it (``KERNEL=NUMPY`` -> False)."""
+        for part in (self.law, self.foundation):
+            if hasattr(part, "use_kernel"):
+                part.use_kernel = bool(numba) and bool(getattr(part, "kernel_supported", False))
+
     def init_state(self) -> dict[str, np.ndarray]:
         return self.law.init_state(self.ng)
 

@@ -98,6 +98,22 @@ def _clipped_linear(v0: float, slope: float, lam: np.ndarray):
     return np.maximum(v0 + slope * lam, 0.0), np.where(active, slope, 0.0)
 
 
+_SNAP_BACK = "COULOMB: KT + dB/dlam + p dphi/dlam <= 0 at a slipping point (softening snap-back)"
+_KERNELS: list = []
+
+
+def _numba_kernels():
+    """:mod:`lagamine_py.laws.coulomb_numba`, or None without numba (imported once, lazily:
+    numba takes a few tenths of a second to import)."""
+    if not _KERNELS:
+        try:
+            from . import coulomb_numba
+        except ImportError:
+            coulomb_numba = None
+        _KERNELS.append(coulomb_numba)
+    return _KERNELS[0]
+
+
 def _as_shape(x, shape) -> np.ndarray:
     """``x`` as a float array of ``shape`` (a broadcast view only when it is not one already)."""
     x = np.asarray(x, float)
@@ -146,6 +162,12 @@ class Coulomb(ContactLaw):
             # AUTO is resolved by the contact element (this law integrates each sub-interval
             # exactly; sub-intervals only refine the rotation of the local axes)
             raise ParamError(f"SUBTOL must be > 0 with SUBSTEPS=AUTO, got {self.subtol:g}")
+        # the numba kernel (lagamine_py.laws.coulomb_numba) when numba imports: the same update
+        # point by point.  Exact type only (a subclass may change anything); False forces the
+        # NumPy path, the reference.
+        self.kernel_supported = type(self) is Coulomb
+        self.use_kernel = self.kernel_supported
+        self._lv = None                       # the kernel's parameter vector, on first use
         # the finite clipping kinks of B(lam) and phi(lam) (softening only); without them the
         # return finishes in one piece and the dissipation integral has one piece
         self._kinks = tuple(k for k in (_kink(self.b, self.hb), _kink(self.phi, self.hphi))
@@ -184,6 +206,14 @@ class Coulomb(ContactLaw):
 
           (``contact_point.drive(..., tangent=True)`` does exactly this).
         """
+        kernels = _numba_kernels() if self.use_kernel else None
+        if kernels is not None and np.ndim(state["p"]) == 1:
+            if self._lv is None:
+                self._lv = kernels.law_vector(self)
+            new, tan, bad = kernels.coulomb_update(self._lv, state, d, du, dv, frozen)
+            if bad:
+                raise ReturnMappingError(_SNAP_BACK)
+            return new, tan
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             # masked formulas are evaluated everywhere by np.where; unused lanes may overflow
             return self._update(state, d, du, dv, frozen)
@@ -345,8 +375,7 @@ class Coulomb(ContactLaw):
             else:                                           # no kink ahead of any lam
                 cross, finish = None, ~done
             if self._may_snap_back and np.any(finish & (kt + h <= 0.0)):
-                raise ReturnMappingError("COULOMB: KT + dB/dlam + p dphi/dlam <= 0 at a "
-                                         "slipping point (softening snap-back)")
+                raise ReturnMappingError(_SNAP_BACK)
             dmat = np.where(finish, kt + h, dmat)
             hmat = np.where(finish, h, hmat)
             if cross is None:

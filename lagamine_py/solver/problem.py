@@ -87,6 +87,9 @@ class Problem:
             raise KeyError("KERNEL=NUMBA needs the optional package numba "
                            "(pip install 'lagamine_py[fast]')")
         self.kernel = kernel
+        for g in self.groups:           # contact groups: the law's and the projection's kernels
+            if hasattr(g, "set_kernel"):
+                g.set_kernel(kernel != "NUMPY")
 
     def fused(self, k: int) -> bool:
         """Whether group ``k`` is computed by its fused kernel under the current setting."""
