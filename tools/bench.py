@@ -308,7 +308,29 @@ def _bench_fused(group, pattern, u, u_old, state, ctx, repeat: int) -> dict:
 
 def _bench_contact(repeat: int, nx: int = 320, ny: int = 4) -> dict:
     """Contact group of press-slide (3 Gauss points per contact element), every point pressed
-    into the foundation and sliding: microseconds per contact Gauss point, with the scatter."""
+    into the foundation and sliding: microseconds per contact Gauss point, with the scatter.
+
+    The top-level keys measure the default path at ``nx x ny`` (the numba kernels of the law
+    and the projection when numba is installed); ``rows`` gives, for that group and for the
+    120-point group of the 40x20 mesh (the fixed per-call cost dominates there), the NumPy path
+    and the numba path side by side (:func:`_contact_case`)."""
+    rows = []
+    for mx, my in ((nx, ny), (40, 20)):
+        for kernel in (False, True):
+            rows.append(_contact_case(repeat, mx, my, kernel))
+    default = next(r for r in rows if (r["nx"], r["ny"]) == (nx, ny)
+                   and r["kernel"] == rows[1]["kernel_available"])
+    out = {k: v for k, v in default.items() if k not in ("nx", "ny")}
+    out["rows"] = rows
+    return out
+
+
+def _contact_case(repeat: int, nx: int, ny: int, kernel: bool) -> dict:
+    """One contact measurement (see :func:`_bench_contact`): ``kernel`` False forces the NumPy
+    path (``law.use_kernel = foundation.use_kernel = False``); True uses the numba kernels when
+    numba imports (after a warm-up call that compiles them or loads them from the cache).
+    ``cpu_first_us_per_gp``: the first Newton iteration of an increment, which also projects
+    the start configuration (the group's cache of it cleared before each call)."""
     from lagamine_py.deck import load_deck
     from lagamine_py.elements.base import StepContext
     from lagamine_py.solver.problem import build_problem
@@ -320,6 +342,12 @@ def _bench_contact(repeat: int, nx: int = 320, ny: int = 4) -> dict:
     problem = build_problem(model)
     k = problem.kinds.index("contact")
     g = problem.groups[k]
+    available = True
+    try:
+        import lagamine_py.laws.coulomb_numba  # noqa: F401
+    except ImportError:
+        available = False
+    g.law.use_kernel = g.foundation.use_kernel = kernel
     states = problem.init_states()
     n = len(model.coords)
     u_old = np.zeros((n, 2))
@@ -329,23 +357,33 @@ def _bench_contact(repeat: int, nx: int = 320, ny: int = 4) -> dict:
     u[bottom, 0] = 1e-3                        # and slid
     ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, load_factor=1.0,
                       foundation_old={"FLAT": np.zeros(2)}, foundation_new={"FLAT": np.zeros(2)})
-    res = g.compute(u, u_old, states[k], ctx, True)
+    res = g.compute(u, u_old, states[k], ctx, True)         # warm-up (numba: compile / load)
     ngp = int(np.size(res.state.get("status", np.zeros(0))))
+
+    def compute():
+        g.compute(u, u_old, states[k], ctx, True)
+
+    def first():
+        g._start_cache = None
+        g.compute(u, u_old, states[k], ctx, True)
+
     def scatter():
         problem.pattern.group_vector(k, res.f)
         problem.pattern.assemble_data([res.K if j == k else None
                                        for j in range(len(problem.groups))])
-    t_c = _best(lambda: g.compute(u, u_old, states[k], ctx, True), repeat)
+    t_c = _best(compute, repeat)
     t_s = _best(scatter, repeat)
-    c_c = _best(lambda: g.compute(u, u_old, states[k], ctx, True), repeat, time.process_time)
+    c_c = _best(compute, repeat, time.process_time)
+    c_f = _best(first, repeat, time.process_time)
     # the scatter of a few contact blocks is dominated by zeroing the whole CSR data array
     c_s = _best(scatter, repeat, time.process_time)
     status = np.asarray(res.state.get("status")).ravel()
-    return {"contact_elements": len(g.dofs), "gauss_points": ngp,
-            "compute_us_per_gp": 1e6 * t_c / max(ngp, 1),
-            "total_us_per_gp": 1e6 * (t_c + t_s) / max(ngp, 1),
-            "cpu_compute_us_per_gp": 1e6 * c_c / max(ngp, 1),
-            "cpu_total_us_per_gp": 1e6 * (c_c + c_s) / max(ngp, 1),
+    per = 1e6 / max(ngp, 1)
+    return {"nx": nx, "ny": ny, "kernel": bool(kernel and available),
+            "kernel_available": available, "contact_elements": len(g.dofs), "gauss_points": ngp,
+            "compute_us_per_gp": t_c * per, "total_us_per_gp": (t_c + t_s) * per,
+            "cpu_compute_us_per_gp": c_c * per, "cpu_total_us_per_gp": (c_c + c_s) * per,
+            "cpu_first_us_per_gp": c_f * per, "cpu_compute_us_per_call": 1e6 * c_c,
             "status_counts": {int(s): int((status == s).sum()) for s in np.unique(status)}}
 
 
