@@ -79,7 +79,8 @@ import numpy as np
 from ..foundation import Foundation
 
 FAR = 1e30          # penetration handed to the law for a point whose line misses the foundation
-from ..laws.base import OPEN, STICK, ContactLaw
+from ..laws.base import OPEN, STICK, ContactLaw, ReturnMappingError
+from ..laws.coulomb import _SNAP_BACK
 from .base import Group, GroupResult, StepContext
 from .shapes import gauss_1d, line_shape
 
@@ -403,7 +404,15 @@ class ContactGroup(Group):
         return self._Wg * P[:, 0], self._Wg[:, None] * self._AP[:, 0, :]
 
     def compute(self, u_new, u_old, state, ctx: StepContext, tangent: bool = True) -> GroupResult:
-        """Contact forces ``f`` (f, nd) and ``K = df/du_new`` (f, nd, nd); see the module doc."""
+        """Contact forces ``f`` (f, nd) and ``K = df/du_new`` (f, nd, nd); see the module doc.
+
+        With the COULOMB law, a :class:`~lagamine_py.foundation.Foundation` and numba (both
+        allowing their kernels, see :meth:`set_kernel`) the whole computation runs in one
+        compiled loop over the points (:func:`lagamine_py.laws.coulomb_numba.contact_group`),
+        equal to this NumPy code to round-off."""
+        kernels = self._kernels()
+        if kernels is not None:
+            return self._compute_fused(kernels, u_new, u_old, state, ctx, tangent)
         geo = bool(ctx.nlgeom)
         with np.errstate(invalid="ignore", divide="ignore"):
             st, D, P, t = self._integrate(u_new, u_old, state, ctx, tangent)
@@ -433,13 +442,57 @@ class ContactGroup(Group):
             K = Kg.reshape(self.nf, self.nq, self.nd, self.nd).sum(axis=1)
         return GroupResult(f=f, K=K, state=st, failure=failure)
 
-    def _inadmissible(self, st, ctx) -> str | None:
+    def _kernels(self):
+        """:mod:`lagamine_py.laws.coulomb_numba` when this group can run fused (the law and the
+        foundation both support and allow their kernels, and numba imports), else None."""
+        for part in (self.law, self.foundation):
+            if not (getattr(part, "use_kernel", False) and getattr(part, "kernel_supported", False)):
+                return None
+        from ..laws.coulomb import _numba_kernels
+        return _numba_kernels()
+
+    def _compute_fused(self, kernels, u_new, u_old, state, ctx, tangent) -> GroupResult:
+        """:meth:`compute` through the fused kernel (same sub-intervals, start penetration,
+        failures)."""
+        geo = bool(ctx.nlgeom)
+        xo, xn = self._face_x(u_old), self._face_x(u_new)
+        co, cn = self._translation(ctx, "old"), self._translation(ctx, "new")
+        nsub = self.substeps_for(xo, xn, geo)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d_start = self._start_penetration(xo, co, geo)
+        static = getattr(self, "_kernel_static", None)
+        if static is None:
+            c, nq = np.ascontiguousarray, self.nq
+            static = self._kernel_static = (
+                c(self.N, float), c(self.dN, float), c(self.w, float), c(self._t0, float),
+                c(self._P0, float), c(self._At[:nq], float), c(self._RAt[:nq], float),
+                c(self._AP[:nq, 0, :], float))
+        law = self.law
+        if law._lv is None:
+            law._lv = kernels.law_vector(law)
+        st, f, K, jac, outside, snap = kernels.contact_group(
+            self, static, xo, xn, d_start, co, cn, nsub, float(getattr(law, "theta", 1.0)), geo,
+            tangent, state, self._frozen(ctx), law._lv)
+        if snap:
+            raise ReturnMappingError(_SNAP_BACK)
+        failure = None
+        if (jac <= self._jac_tol).any():
+            failure = f"contact {self.name}: degenerate face (zero Jacobian)"
+        elif not (np.isfinite(f).all() and np.isfinite(st["p"]).all()
+                  and np.isfinite(st["tau"]).all()):
+            failure = f"contact {self.name}: non-finite contact stresses"
+        elif outside.any():
+            failure = self._inadmissible(st, ctx, outside)
+        return GroupResult(f=f, K=K, state=st, failure=failure)
+
+    def _inadmissible(self, st, ctx, bad=None) -> str | None:
         """A failure message when the law reports points outside its yield cone
-        (``law.outside_cone(state)``, optional), except points held STICK by the solver."""
+        (``law.outside_cone(state)``, optional; or ``bad`` (g,) when already known), except
+        points held STICK by the solver."""
         check = getattr(self.law, "outside_cone", None)
-        if not callable(check):
+        if bad is None and not callable(check):
             return None
-        bad = np.asarray(check(st), bool)
+        bad = np.asarray(check(st) if bad is None else bad, bool)
         frozen = self._frozen(ctx)
         if frozen is not None:
             bad &= np.asarray(frozen) != STICK

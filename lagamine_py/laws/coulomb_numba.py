@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["coulomb_update", "TAN_KEYS", "project_points", "law_vector"]
+__all__ = ["coulomb_update", "TAN_KEYS", "project_points", "law_vector", "contact_group"]
 
 _JIT = dict(cache=True, fastmath=False, error_model="numpy", nogil=True)
 
@@ -106,16 +106,18 @@ def _dissipation(lv, tau0, p0, dp, dv_c, lam0, dlam, sig):
     lam1 = lam0 + dlam
     lo, hi = _nmin(lam0, lam1), _nmax(lam0, lam1)
     nk = int(lv[_NK])
-    edges = np.empty(4)
-    edges[0] = lo
-    for i in range(nk):
-        edges[1 + i] = _nmin(_nmax(lv[_K1 + i], lo), hi)
-    edges[1 + nk] = hi
-    if nk:
-        edges[:2 + nk].sort()
+    # the pieces between lo, the kinks inside [lo, hi] (sorted) and hi; no array allocated
+    e1 = e2 = hi
+    if nk >= 1:
+        e1 = _nmin(_nmax(lv[_K1], lo), hi)
+    if nk == 2:
+        e2 = _nmin(_nmax(lv[_K2], lo), hi)
+        if e2 < e1:
+            e1, e2 = e2, e1
     total = 0.0
     for piece in range(1 + nk):
-        a, c = edges[piece], edges[piece + 1]
+        a = lo if piece == 0 else (e1 if piece == 1 else e2)
+        c = e1 if piece == 0 else (e2 if piece == 1 else hi)
         acc = 0.0
         for k in range(8):
             lam = 0.5 * (a + c) + 0.5 * (c - a) * _GL_X[k]
@@ -131,145 +133,154 @@ def _dissipation(lv, tau0, p0, dp, dv_c, lam0, dlam, sig):
 
 
 @njit(**_JIT)
-def _coulomb(lv, p_old, tau_old, lam_old, slip_old, dissip_old, status_old, d, du, dv, hold,
-             has_hold, p_new, tau_new, lam_new, slip_new, dissip_new, status_new, tan):
-    """One sub-interval of ``Coulomb._update`` for every point; returns the number of points
-    whose return met ``KT + H <= 0`` (the NumPy path raises ReturnMappingError)."""
+def _coulomb_point(lv, po, tau_old, lam_old, slip_old, dissip_old, status_old, dg, dug, dvg, h_g,
+                   tan):
+    """``Coulomb._update`` at one point (``h_g`` its hold, -1 free): returns ``p, tau, lam,
+    slip, dissip, status, snap_back`` and fills ``tan`` (14,) in the order of TAN_KEYS;
+    ``snap_back``: the return met ``KT + H <= 0`` (the NumPy path raises ReturnMappingError)."""
     kp, kt = lv[_KP], lv[_KT]
     classical, predictor = lv[_CLASSICAL] != 0.0, lv[_PREDICTOR] != 0.0
     nk = int(lv[_NK])
     snap = lv[_SNAP] != 0.0
+    bad = False
+    closable = h_g != OPEN
+    contact = (dg >= 0.0) and closable
+    p1 = kp * _nmax(dg, 0.0) if contact else 0.0
+    d_old = dg - dug
+    recon = contact and status_old == OPEN
+    partial = recon and (dg <= dug) and (dug > 0.0)
+    sep = (not contact) and (po > 0.0) and (d_old > 0.0) and (dg <= 0.0) and closable
+    frac = 1.0
+    if partial:
+        frac = dg / dug
+    elif sep:
+        frac = d_old / (d_old - dg)
+    active = contact or sep
+    dv_c = dvg * frac
+    tau0 = 0.0 if recon else tau_old
+    p0 = 0.0 if recon else po
+    lam0 = lam_old
+    tau_tr = tau0 + kt * dv_c
+    # loading (Coulomb._loading)
+    b0, hb0 = _clipped(lv[_B], lv[_HB], lam0)
+    phi0, hphi0 = _clipped(lv[_PHI], lv[_HPHI], lam0)
+    radius0 = b0 + phi0 * p0
+    abs_tau0 = abs(tau0)
+    f0 = abs_tau0 - radius0
+    f_tr = abs(tau_tr) - b0 - phi0 * p1
+    sig = 1.0 if tau_tr >= 0.0 else -1.0
+    if tau0 != 0.0:
+        sig0 = _sign(tau0)
+    else:
+        sig0 = 1.0 if dv_c >= 0.0 else -1.0
+    on = active and (f0 >= -_ON_SURFACE_RTOL * (radius0 + abs_tau0))
+    indicator = sig0 * kt * dv_c - phi0 * (p1 - p0)
+    pos_tr = f_tr > 0.0
+    if classical:
+        h0 = hb0 + hphi0 * p0
+        indicator = h0 * indicator / (h0 + kt)
+        loading_on = on and (indicator >= 0.0)
+    else:
+        loading_on = on and ((indicator > 0.0) or ((indicator == 0.0) and pos_tr))
+    plastic = loading_on or (pos_tr and active and ((not on) or (sig != sig0)))
+    if h_g == STICK:
+        plastic = False
+    elif h_g == SLIP:
+        plastic = contact
+    # return (Coulomb._return), walking over the kinks
+    lam = lam0
+    resid = f_tr
+    done = not plastic
+    dmat = kt
+    h = hb0 + hphi0 * p1
+    for it in range(nk + 1):
+        if done:
+            break
+        if it:
+            _, hb = _clipped(lv[_B], lv[_HB], lam)
+            _, hphi = _clipped(lv[_PHI], lv[_HPHI], lam)
+            h = hb + hphi * p1
+        step = resid / (kt + h)
+        cross = False
+        ahead = math.inf
+        if nk:
+            for i in range(nk):
+                k = lv[_K1 + i]
+                if lam < k and k < ahead:
+                    ahead = k
+            cross = (step > 0.0) and (lam + step > ahead)
+        if not cross:
+            if snap and kt + h <= 0.0:
+                bad = True
+            dmat = kt + h
+            lam = lam + step
+            done = True
+        else:
+            resid = resid - (kt + h) * (ahead - lam)
+            lam = ahead
+    phi1, _ = _clipped(lv[_PHI], lv[_HPHI], lam)
+    dlam = lam - lam0 if plastic else 0.0
+    if predictor and h_g != SLIP:
+        dlam = _nmax(dlam, 0.0)
+    skt = sig * kt
+    ddis = 0.0
+    if plastic and dlam != 0.0:
+        ddis = _dissipation(lv, tau0, p0, p1 - p0, dv_c, lam0, dlam, sig)
+    # tangent (Coulomb._tangent)
+    c = 1.0 if contact else 0.0
+    act = 1.0 if active else 0.0
+    frac_d = 0.0
+    frac_du = 0.0
+    if partial:
+        frac_d = 1.0 / dug
+        frac_du = -frac / dug
+    elif sep:
+        frac_d = -1.0 / dug
+        frac_du = (1.0 - frac) / dug
+    ktdv = kt * dvg
+    dtr_d, dtr_du, dtr_v = ktdv * frac_d, ktdv * frac_du, kt * frac
+    dtr_tau = 0.0 if recon else 1.0
+    kpc = kp * c
+    if plastic:
+        lam_tr, lam_p1, lam_lam = sig / dmat, -phi1 / dmat, kt / dmat
+    else:
+        lam_tr, lam_p1, lam_lam = 0.0, 0.0, 1.0
+    lam_d = act * (lam_tr * dtr_d + lam_p1 * kpc)
+    lam_du = act * (lam_tr * dtr_du)
+    lam_v = act * (lam_tr * dtr_v)
+    lam_t = act * (lam_tr * dtr_tau)
+    tan[0] = lam_d
+    tan[1] = c * (dtr_d - skt * lam_d)
+    tan[2] = lam_du
+    tan[3] = c * (dtr_du - skt * lam_du)
+    tan[4] = lam_v
+    tan[5] = c * (dtr_v - skt * lam_v)
+    tan[6] = lam_t
+    tan[7] = c * (dtr_tau - skt * lam_t)
+    tan[8] = lam_lam
+    tan[9] = c * (-skt * (lam_lam - 1.0) if plastic else 0.0)
+    tan[10] = kpc
+    tan[11] = kpc
+    tan[12] = tan[1] + tan[3]
+    tan[13] = lam_d + lam_du
+    status = (SLIP if plastic else STICK) if contact else OPEN
+    return (p1, tau_tr - skt * dlam if contact else 0.0, lam0 + dlam, slip_old + abs(dlam),
+            dissip_old + ddis, status, bad)
+
+
+@njit(**_JIT)
+def _coulomb(lv, p_old, tau_old, lam_old, slip_old, dissip_old, status_old, d, du, dv, hold,
+             has_hold, p_new, tau_new, lam_new, slip_new, dissip_new, status_new, tan):
+    """:func:`_coulomb_point` for every point; returns the number of snap-backs."""
     bad = 0
+    t = np.empty(14)
     for g in range(p_old.shape[0]):
-        h_g = hold[g] if has_hold else -1
-        dg, dug, dvg = d[g], du[g], dv[g]
-        po = p_old[g]
-        closable = h_g != OPEN
-        contact = (dg >= 0.0) and closable
-        p1 = kp * _nmax(dg, 0.0) if contact else 0.0
-        d_old = dg - dug
-        recon = contact and status_old[g] == OPEN
-        partial = recon and (dg <= dug) and (dug > 0.0)
-        sep = (not contact) and (po > 0.0) and (d_old > 0.0) and (dg <= 0.0) and closable
-        frac = 1.0
-        if partial:
-            frac = dg / dug
-        elif sep:
-            frac = d_old / (d_old - dg)
-        active = contact or sep
-        dv_c = dvg * frac
-        tau0 = 0.0 if recon else tau_old[g]
-        p0 = 0.0 if recon else po
-        lam0 = lam_old[g]
-        tau_tr = tau0 + kt * dv_c
-        # loading (Coulomb._loading)
-        b0, hb0 = _clipped(lv[_B], lv[_HB], lam0)
-        phi0, hphi0 = _clipped(lv[_PHI], lv[_HPHI], lam0)
-        radius0 = b0 + phi0 * p0
-        abs_tau0 = abs(tau0)
-        f0 = abs_tau0 - radius0
-        f_tr = abs(tau_tr) - b0 - phi0 * p1
-        sig = 1.0 if tau_tr >= 0.0 else -1.0
-        if tau0 != 0.0:
-            sig0 = _sign(tau0)
-        else:
-            sig0 = 1.0 if dv_c >= 0.0 else -1.0
-        on = active and (f0 >= -_ON_SURFACE_RTOL * (radius0 + abs_tau0))
-        indicator = sig0 * kt * dv_c - phi0 * (p1 - p0)
-        pos_tr = f_tr > 0.0
-        if classical:
-            h0 = hb0 + hphi0 * p0
-            indicator = h0 * indicator / (h0 + kt)
-            loading_on = on and (indicator >= 0.0)
-        else:
-            loading_on = on and ((indicator > 0.0) or ((indicator == 0.0) and pos_tr))
-        plastic = loading_on or (pos_tr and active and ((not on) or (sig != sig0)))
-        if h_g == STICK:
-            plastic = False
-        elif h_g == SLIP:
-            plastic = contact
-        # return (Coulomb._return), walking over the kinks
-        lam = lam0
-        resid = f_tr
-        done = not plastic
-        dmat = kt
-        h = hb0 + hphi0 * p1
-        for it in range(nk + 1):
-            if done:
-                break
-            if it:
-                _, hb = _clipped(lv[_B], lv[_HB], lam)
-                _, hphi = _clipped(lv[_PHI], lv[_HPHI], lam)
-                h = hb + hphi * p1
-            step = resid / (kt + h)
-            cross = False
-            ahead = math.inf
-            if nk:
-                for i in range(nk):
-                    k = lv[_K1 + i]
-                    if lam < k and k < ahead:
-                        ahead = k
-                cross = (step > 0.0) and (lam + step > ahead)
-            if not cross:
-                if snap and kt + h <= 0.0:
-                    bad += 1
-                dmat = kt + h
-                lam = lam + step
-                done = True
-            else:
-                resid = resid - (kt + h) * (ahead - lam)
-                lam = ahead
-        phi1, _ = _clipped(lv[_PHI], lv[_HPHI], lam)
-        dlam = lam - lam0 if plastic else 0.0
-        if predictor and h_g != SLIP:
-            dlam = _nmax(dlam, 0.0)
-        skt = sig * kt
-        tau_new[g] = tau_tr - skt * dlam if contact else 0.0
-        p_new[g] = p1
-        lam_new[g] = lam0 + dlam
-        slip_new[g] = slip_old[g] + abs(dlam)
-        ddis = 0.0
-        if plastic and dlam != 0.0:
-            ddis = _dissipation(lv, tau0, p0, p1 - p0, dv_c, lam0, dlam, sig)
-        dissip_new[g] = dissip_old[g] + ddis
-        status_new[g] = (SLIP if plastic else STICK) if contact else OPEN
-        # tangent (Coulomb._tangent)
-        c = 1.0 if contact else 0.0
-        act = 1.0 if active else 0.0
-        frac_d = 0.0
-        frac_du = 0.0
-        if partial:
-            frac_d = 1.0 / dug
-            frac_du = -frac / dug
-        elif sep:
-            frac_d = -1.0 / dug
-            frac_du = (1.0 - frac) / dug
-        ktdv = kt * dvg
-        dtr_d, dtr_du, dtr_v = ktdv * frac_d, ktdv * frac_du, kt * frac
-        dtr_tau = 0.0 if recon else 1.0
-        kpc = kp * c
-        if plastic:
-            lam_tr, lam_p1, lam_lam = sig / dmat, -phi1 / dmat, kt / dmat
-        else:
-            lam_tr, lam_p1, lam_lam = 0.0, 0.0, 1.0
-        lam_d = act * (lam_tr * dtr_d + lam_p1 * kpc)
-        lam_du = act * (lam_tr * dtr_du)
-        lam_v = act * (lam_tr * dtr_v)
-        lam_t = act * (lam_tr * dtr_tau)
-        tan[0, g] = lam_d
-        tan[1, g] = c * (dtr_d - skt * lam_d)
-        tan[2, g] = lam_du
-        tan[3, g] = c * (dtr_du - skt * lam_du)
-        tan[4, g] = lam_v
-        tan[5, g] = c * (dtr_v - skt * lam_v)
-        tan[6, g] = lam_t
-        tan[7, g] = c * (dtr_tau - skt * lam_t)
-        tan[8, g] = lam_lam
-        tan[9, g] = c * (-skt * (lam_lam - 1.0) if plastic else 0.0)
-        tan[10, g] = kpc
-        tan[11, g] = kpc
-        tan[12, g] = tan[1, g] + tan[3, g]
-        tan[13, g] = lam_d + lam_du
+        (p_new[g], tau_new[g], lam_new[g], slip_new[g], dissip_new[g], status_new[g],
+         snap) = _coulomb_point(lv, p_old[g], tau_old[g], lam_old[g], slip_old[g],
+                                dissip_old[g], status_old[g], d[g], du[g], dv[g],
+                                hold[g] if has_hold else -1, t)
+        bad += snap
+        tan[:, g] = t
     return bad
 
 
@@ -303,84 +314,94 @@ def coulomb_update(lv, state, d, du, dv, frozen):
 # foundation projection
 
 @njit(**_JIT)
-def _project(A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, c, P, e_u, wt_start,
-             wt_end, d, found, arc_out, s_out, Q, tangent, dd_dP, dd_de):
-    """``Foundation.project`` point by point: candidates in the same order (roots r1 of every
-    arc, roots r2, start half-line, end half-line), the first of the smallest valid |d| wins.
-    ``wt_start``, ``wt_end`` (g,): ``perp(e_u) . t`` of the end half-lines (BLAS products in
-    the NumPy path, passed in so that they are the same numbers)."""
+def _project_one(A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, c, px, py, ex, ey,
+                 wt_s, wt_e):
+    """``Foundation.project`` of one line (P, e_u): candidates in the same order (roots r1 of
+    every arc, roots r2, start half-line, end half-line), the first of the smallest valid |d|
+    wins.  ``wt_s``, ``wt_e``: ``perp(e_u) . t`` of the end half-lines.  Returns ``found, d,
+    arc, s, X (2), dF/ds (2)`` (``d = inf`` where not found)."""
     nj = A.shape[0]
     lo, hi = -1.0 - s_tol, 1.0 + s_tol
-    for g in range(P.shape[0]):
-        px, py = P[g, 0], P[g, 1]
-        ex, ey = e_u[g, 0], e_u[g, 1]
-        w0, w1 = -ey, ex
-        best = math.inf
-        bX0 = bX1 = bT0 = bT1 = bd = bs = 0.0
-        barc = -1
-        for k in range(2 * nj + 2):
-            # the candidate's arc parameter s (NaN: none)
-            if k < 2 * nj:
-                j = k % nj
-                a = w0 * C[j, 0] + w1 * C[j, 1]
-                b = w0 * B[j, 0] + w1 * B[j, 1]
-                c0 = w0 * ((A[j, 0] + c[0]) - px) + w1 * ((A[j, 1] + c[1]) - py)
-                disc = b * b - 4 * a * c0
-                if not disc >= 0:
-                    continue                              # NaN roots
-                sq = math.sqrt(disc)
-                q = -0.5 * (b + (sq if b >= 0 else -sq))
-                # a division by zero gives inf or NaN, which the range test rejects
-                if k < nj:
-                    if a == 0.0:
-                        continue
-                    s = q / a
-                elif q == 0.0 and a != 0.0:        # ray through the vertex, tangent
-                    s = -b / (2 * a)
-                else:
-                    if q == 0.0:
-                        continue
-                    s = c0 / q
-                if not (s >= lo and s <= hi):
+    w0, w1 = -ey, ex
+    best = math.inf
+    bX0 = bX1 = bT0 = bT1 = bd = bs = 0.0
+    barc = -1
+    for k in range(2 * nj + 2):
+        # the candidate's arc parameter s (NaN: none)
+        if k < 2 * nj:
+            j = k % nj
+            a = w0 * C[j, 0] + w1 * C[j, 1]
+            b = w0 * B[j, 0] + w1 * B[j, 1]
+            c0 = w0 * ((A[j, 0] + c[0]) - px) + w1 * ((A[j, 1] + c[1]) - py)
+            disc = b * b - 4 * a * c0
+            if not disc >= 0:
+                continue                              # NaN roots
+            sq = math.sqrt(disc)
+            q = -0.5 * (b + (sq if b >= 0 else -sq))
+            # a division by zero gives inf or NaN, which the range test rejects
+            if k < nj:
+                if a == 0.0:
                     continue
-                arc = j
+                s = q / a
+            elif q == 0.0 and a != 0.0:        # ray through the vertex, tangent
+                s = -b / (2 * a)
             else:
-                end = k - 2 * nj
-                o = start_o if end == 0 else end_o
-                sign = -1.0 if end == 0 else 1.0
-                wt = wt_start[g] if end == 0 else wt_end[g]
-                ds = -(w0 * ((o[0] + c[0]) - px) + w1 * ((o[1] + c[1]) - py)) / wt
-                if not ds * sign > 0:
+                if q == 0.0:
                     continue
-                s = sign + ds
-                arc = 0 if end == 0 else nj - 1
-            # evaluate (Foundation.evaluate)
-            if arc == 0 and s < -1:
-                X0 = start_o[0] + (s + 1) * start_t[0]
-                X1 = start_o[1] + (s + 1) * start_t[1]
-                T0, T1 = start_t[0], start_t[1]
-            elif arc == nj - 1 and s > 1:
-                X0 = end_o[0] + (s - 1) * end_t[0]
-                X1 = end_o[1] + (s - 1) * end_t[1]
-                T0, T1 = end_t[0], end_t[1]
-            else:
-                X0 = A[arc, 0] + B[arc, 0] * s + C[arc, 0] * (s * s)
-                X1 = A[arc, 1] + B[arc, 1] * s + C[arc, 1] * (s * s)
-                T0 = B[arc, 0] + 2 * C[arc, 0] * s
-                T1 = B[arc, 1] + 2 * C[arc, 1] * s
-            X0 = X0 + c[0]
-            X1 = X1 + c[1]
-            m0, m1 = -T1, T0
-            m_norm = math.sqrt(m0 * m0 + m1 * m1)
-            cosn = (m0 * ex + m1 * ey) / (m_norm if m_norm > 0 else 1.0)
-            dist = ((px - X0) * ex + (py - X1) * ey) / (ex * ex + ey * ey)
-            if not (m_norm > 0 and cosn < -cos_min):
+                s = c0 / q
+            if not (s >= lo and s <= hi):
                 continue
-            score = abs(dist)
-            if score < best:                   # the first of equal scores wins (np.argmin)
-                best = score
-                bX0, bX1, bT0, bT1, bd, bs, barc = X0, X1, T0, T1, dist, s, arc
-        if best < math.inf:
+            arc = j
+        else:
+            end = k - 2 * nj
+            o = start_o if end == 0 else end_o
+            sign = -1.0 if end == 0 else 1.0
+            wt = wt_s if end == 0 else wt_e
+            ds = -(w0 * ((o[0] + c[0]) - px) + w1 * ((o[1] + c[1]) - py)) / wt
+            if not ds * sign > 0:
+                continue
+            s = sign + ds
+            arc = 0 if end == 0 else nj - 1
+        # evaluate (Foundation.evaluate)
+        if arc == 0 and s < -1:
+            X0 = start_o[0] + (s + 1) * start_t[0]
+            X1 = start_o[1] + (s + 1) * start_t[1]
+            T0, T1 = start_t[0], start_t[1]
+        elif arc == nj - 1 and s > 1:
+            X0 = end_o[0] + (s - 1) * end_t[0]
+            X1 = end_o[1] + (s - 1) * end_t[1]
+            T0, T1 = end_t[0], end_t[1]
+        else:
+            X0 = A[arc, 0] + B[arc, 0] * s + C[arc, 0] * (s * s)
+            X1 = A[arc, 1] + B[arc, 1] * s + C[arc, 1] * (s * s)
+            T0 = B[arc, 0] + 2 * C[arc, 0] * s
+            T1 = B[arc, 1] + 2 * C[arc, 1] * s
+        X0 = X0 + c[0]
+        X1 = X1 + c[1]
+        m0, m1 = -T1, T0
+        m_norm = math.sqrt(m0 * m0 + m1 * m1)
+        cosn = (m0 * ex + m1 * ey) / (m_norm if m_norm > 0 else 1.0)
+        dist = ((px - X0) * ex + (py - X1) * ey) / (ex * ex + ey * ey)
+        if not (m_norm > 0 and cosn < -cos_min):
+            continue
+        score = abs(dist)
+        if score < best:                   # the first of equal scores wins (np.argmin)
+            best = score
+            bX0, bX1, bT0, bT1, bd, bs, barc = X0, X1, T0, T1, dist, s, arc
+    return best < math.inf, bd, barc, bs, bX0, bX1, bT0, bT1
+
+
+@njit(**_JIT)
+def _project(A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, c, P, e_u, wt_start,
+             wt_end, d, found, arc_out, s_out, Q, tangent, dd_dP, dd_de):
+    """:func:`_project_one` for every point, with the derivatives of d.  ``wt_start``,
+    ``wt_end`` (g,): BLAS products in the NumPy path, passed in so that they are the same."""
+    for g in range(P.shape[0]):
+        ex, ey = e_u[g, 0], e_u[g, 1]
+        ok, bd, barc, bs, bX0, bX1, bT0, bT1 = _project_one(
+            A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, c, P[g, 0], P[g, 1], ex,
+            ey, wt_start[g], wt_end[g])
+        if ok:
             found[g] = True
             d[g] = bd
             arc_out[g] = barc
@@ -425,3 +446,267 @@ def project_points(found_obj, P, e_u, c):
     normal[:, 1] = tangent[:, 0]
     return dict(Q=Q, d=d, arc=arc, s=s, tangent=tangent, normal=normal, found=found,
                 dd_dP=dd_dP, dd_de=dd_de)
+
+
+# --------------------------------------------------------------------------------------------
+# the whole contact group: ContactGroup.compute with COULOMB and a Foundation, fused
+
+@njit(**_JIT)
+def _interp(Nq, x, e, i):
+    """``sum_a N_qa x_eai`` summed over a in order (``ContactGroup._interp``)."""
+    out = Nq[0] * x[e, 0, i]
+    for a in range(1, Nq.shape[0]):
+        out = out + Nq[a] * x[e, a, i]
+    return out
+
+
+@njit(**_JIT)
+def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, xo, xn, N, dN, W, t0, P0,
+             At, RAt, AP0, d_start, co, cn, A, B, C, start_o, start_t, end_o, end_t, s_tol,
+             cos_min, lv, p_old, tau_old, lam_old, slip_old, dissip_old, status_old, hold,
+             has_hold, p_new, tau_new, lam_new, slip_new, dissip_new, status_new, jac, outside,
+             f, K):
+    """``ContactGroup.compute`` (``_integrate`` and the forces/tangent) point by point for the
+    COULOMB law against a :class:`~lagamine_py.foundation.Foundation`: the same formulas in
+    the same order; derivatives known to be zero are skipped as there.  Arrays: ``xo``, ``xn``
+    (f, a, 2) face nodes at the start and end; ``N``, ``dN`` (q, a); ``W`` (q,); ``t0``, ``P0``
+    (g, 2) reference face; ``At``, ``RAt`` (q, 2, nd) and ``AP0`` (q, nd) the element's
+    constant derivative blocks; ``d_start`` (g,) the start penetration.  Writes the new state,
+    ``jac`` |t| (g,), ``outside`` (g,) (``Coulomb.outside_cone``), ``f`` (f, nd) and ``K`` (f,
+    nd, nd) when ``tangent``; returns the number of snap-backs."""
+    nf, na = xo.shape[0], xo.shape[1]
+    nq = N.shape[0]
+    nd = 2 * na
+    kt = lv[_KT]
+    Dd_end = np.zeros(nd)
+    Dd_k = np.zeros(nd)
+    Dd_prev = np.zeros(nd)
+    Ddu = np.zeros(nd)
+    Ddv = np.zeros(nd)
+    Dp, Dtau, Dlam = np.zeros(nd), np.zeros(nd), np.zeros(nd)
+    nDp, nDtau, nDlam = np.zeros(nd), np.zeros(nd), np.zeros(nd)
+    Dvec = np.zeros((2, nd))
+    tl = np.empty(14)
+    dx = xn - xo
+    dc0, dc1 = (cn[0] - co[0]) / nsub, (cn[1] - co[1]) / nsub
+    bad = 0
+    for e in range(nf):
+        for q in range(nq):
+            g = e * nq + q
+            Nq, dNq = N[q], dN[q]
+            # end configuration: P, the axes' tangent, the penetration and its derivative
+            P_0, P_1 = _interp(Nq, xn, e, 0), _interp(Nq, xn, e, 1)
+            if geo:
+                t_0, t_1 = _interp(dNq, xn, e, 0), _interp(dNq, xn, e, 1)
+            else:
+                t_0, t_1 = t0[g, 0], t0[g, 1]
+            n = math.sqrt(t_0 * t_0 + t_1 * t_1)
+            sn = n if n > 0 else 1.0
+            th0, th1 = t_0 / sn, t_1 / sn
+            eu0, eu1 = th1, -th0                                   # R t / |t|
+            # d e_u / d t = (R - e_u th^T) / |t|, R = [[0, 1], [-1, 0]]
+            de00, de01 = (0.0 - eu0 * th0) / n, (1.0 - eu0 * th1) / n
+            de10, de11 = (-1.0 - eu1 * th0) / n, (0.0 - eu1 * th1) / n
+            w0, w1 = -eu1, eu0
+            ok, bd, _, _, _, _, T0, T1 = _project_one(
+                A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, cn, P_0, P_1, eu0, eu1,
+                w0 * start_t[0] + w1 * start_t[1], w0 * end_t[0] + w1 * end_t[1])
+            d_end = bd if ok else -far
+            if abs(d_end) <= touch_tol:
+                d_end = 0.0
+            if tangent:
+                if ok:
+                    mb0, mb1 = -T1, T0
+                    me = mb0 * eu0 + mb1 * eu1
+                    dP0, dP1 = mb0 / me, mb1 / me
+                    dE0, dE1 = -bd * dP0, -bd * dP1
+                    dt0 = dE0 * de00 + dE1 * de10
+                    dt1 = dE0 * de01 + dE1 * de11
+                    for a in range(na):
+                        Dd_end[2 * a] = Nq[a] * dP0
+                        Dd_end[2 * a + 1] = Nq[a] * dP1
+                        if geo:
+                            Dd_end[2 * a] += dNq[a] * dt0
+                            Dd_end[2 * a + 1] += dNq[a] * dt1
+                else:
+                    Dd_end[:] = 0.0
+            # relative displacement per sub-interval
+            rel0 = _interp(Nq, dx, e, 0) / nsub - dc0
+            rel1 = _interp(Nq, dx, e, 1) / nsub - dc1
+            # the sub-intervals (ContactGroup._integrate)
+            h_g = hold[g] if has_hold else -1
+            sp, stau, slam = p_old[g], tau_old[g], lam_old[g]
+            sslip, sdis, sstat = slip_old[g], dissip_old[g], status_old[g]
+            d_prev = d_start[g]
+            have_prev = False
+            zp = ztau = zlam = True
+            for k in range(1, nsub + 1):
+                a_k = k / nsub
+                if nsub == 1:
+                    d_k = d_end
+                    Dd_k[:] = Dd_end
+                else:
+                    d_k = d_start[g] + a_k * (d_end - d_start[g])
+                    for J in range(nd):
+                        Dd_k[J] = a_k * Dd_end[J]
+                a_th = (k - 1 + theta) / nsub
+                if geo:
+                    tt0 = dNq[0] * (xo[e, 0, 0] + a_th * dx[e, 0, 0])
+                    tt1 = dNq[0] * (xo[e, 0, 1] + a_th * dx[e, 0, 1])
+                    for a in range(1, na):
+                        tt0 = tt0 + dNq[a] * (xo[e, a, 0] + a_th * dx[e, a, 0])
+                        tt1 = tt1 + dNq[a] * (xo[e, a, 1] + a_th * dx[e, a, 1])
+                else:
+                    tt0, tt1 = t0[g, 0], t0[g, 1]
+                nv = math.sqrt(tt0 * tt0 + tt1 * tt1)
+                snv = nv if nv > 0 else 1.0
+                h0, h1 = tt0 / snv, tt1 / snv
+                ev0, ev1 = -h0, -h1
+                # d e_v / d t = -(I - th th^T) / |t|
+                dv00, dv01 = -(1.0 - h0 * h0) / nv, -(0.0 - h0 * h1) / nv
+                dv10, dv11 = -(0.0 - h1 * h0) / nv, -(1.0 - h1 * h1) / nv
+                dv = ev0 * rel0 + ev1 * rel1
+                du = d_k - d_prev
+                np_, ntau, nlam, nslip, ndis, nstat, snap = _coulomb_point(
+                    lv, sp, stau, slam, sslip, sdis, sstat, d_k, du, dv, h_g, tl)
+                bad += snap
+                if tangent:
+                    for a in range(na):
+                        Ddv[2 * a] = Nq[a] * ev0
+                        Ddv[2 * a + 1] = Nq[a] * ev1
+                    if nsub != 1:
+                        for J in range(nd):
+                            Ddv[J] /= nsub
+                    if geo:
+                        for a in range(na):
+                            for i in range(2):
+                                dev0i = dv00 if i == 0 else dv01
+                                dev1i = dv10 if i == 0 else dv11
+                                turn = dNq[a] * (rel0 * dev0i) + dNq[a] * (rel1 * dev1i)
+                                Ddv[2 * a + i] += turn if a_th == 1.0 else a_th * turn
+                    for J in range(nd):
+                        Ddu[J] = Dd_k[J] - Dd_prev[J] if have_prev else Dd_k[J]
+                    lam_needed = k < nsub
+                    # chain (ContactGroup._chain): inputs u, v, d, p, tau, lam in this order
+                    for J in range(nd):
+                        acc = tl[11] * Ddu[J]                              # p_u
+                        if have_prev:
+                            acc += tl[10] * Dd_prev[J]                     # p_d
+                        nDp[J] = acc
+                        acc = tl[12] * Ddu[J]                              # tau_u
+                        acc += tl[5] * Ddv[J]                              # tau_v
+                        if have_prev:
+                            acc += tl[1] * Dd_prev[J]                      # tau_d
+                        if not ztau:
+                            acc += tl[7] * Dtau[J]                         # tau_tau
+                        if not zlam:
+                            acc += tl[9] * Dlam[J]                         # tau_lam
+                        nDtau[J] = acc
+                        if lam_needed:
+                            acc = tl[13] * Ddu[J]                          # lam_u
+                            acc += tl[4] * Ddv[J]                          # lam_v
+                            if have_prev:
+                                acc += tl[0] * Dd_prev[J]                  # lam_d
+                            if not ztau:
+                                acc += tl[6] * Dtau[J]                     # lam_tau
+                            if not zlam:
+                                acc += tl[8] * Dlam[J]                     # lam_lam
+                            nDlam[J] = acc
+                    Dp[:] = nDp
+                    Dtau[:] = nDtau
+                    if lam_needed:
+                        Dlam[:] = nDlam
+                    zp = ztau = False
+                    zlam = not lam_needed
+                if h_g == OPEN:                    # held open by the solver
+                    np_, ntau, nlam, nslip, ndis, nstat = 0.0, 0.0, slam, sslip, sdis, OPEN
+                    if tangent:
+                        Dp[:] = 0.0
+                        Dtau[:] = 0.0
+                        Dlam[:] = 0.0
+                sp, stau, slam, sslip, sdis, sstat = np_, ntau, nlam, nslip, ndis, nstat
+                d_prev = d_k
+                Dd_prev[:] = Dd_k
+                have_prev = True
+            if tangent and zp:
+                Dp[:] = 0.0
+            if tangent and ztau:
+                Dtau[:] = 0.0
+            p_new[g], tau_new[g], lam_new[g] = sp, stau, slam
+            slip_new[g], dissip_new[g], status_new[g] = sslip, sdis, sstat
+            # Coulomb.outside_cone
+            b1, _ = _clipped(lv[_B], lv[_HB], slam)
+            phi1, _ = _clipped(lv[_PHI], lv[_HPHI], slam)
+            radius = b1 + phi1 * sp
+            abs_tau = abs(stau)
+            outside[g] = abs_tau - radius > 1e-7 * (radius + abs_tau + sp) + 1e-12 * kt
+            # forces and tangent (ContactGroup.compute)
+            jac[g] = n
+            Rt0, Rt1 = t_1, -t_0
+            vec0 = sp * Rt0 - stau * t_0
+            vec1 = sp * Rt1 - stau * t_1
+            if not ax:
+                wt = W[q] * thickness
+            elif geo:
+                wt = W[q] * P_0
+            else:
+                wt = W[q] * P0[g, 0]
+            for a in range(na):
+                fa0 = Nq[a] * vec0 * wt
+                fa1 = Nq[a] * vec1 * wt
+                if q == 0:
+                    f[e, 2 * a], f[e, 2 * a + 1] = fa0, fa1
+                else:
+                    f[e, 2 * a] += fa0
+                    f[e, 2 * a + 1] += fa1
+            if tangent:
+                for J in range(nd):
+                    Dvec[0, J] = Rt0 * Dp[J] - t_0 * Dtau[J]
+                    Dvec[1, J] = Rt1 * Dp[J] - t_1 * Dtau[J]
+                    if geo:
+                        Dvec[0, J] += sp * RAt[q, 0, J] - stau * At[q, 0, J]
+                        Dvec[1, J] += sp * RAt[q, 1, J] - stau * At[q, 1, J]
+                for a in range(na):
+                    for i in range(2):
+                        veci = vec0 if i == 0 else vec1
+                        for J in range(nd):
+                            kg = Nq[a] * Dvec[i, J] * wt
+                            if ax and geo:
+                                kg = kg + Nq[a] * veci * (W[q] * AP0[q, J])
+                            if q == 0:
+                                K[e, 2 * a + i, J] = kg
+                            else:
+                                K[e, 2 * a + i, J] += kg
+    return bad
+
+
+def contact_group(grp, kernels_static, xo, xn, d_start, co, cn, nsub, theta, geo, tangent,
+                  state, frozen, lv):
+    """:func:`_contact` for a :class:`~lagamine_py.elements.contact.ContactGroup`; returns
+    ``(new_state, f, K, jac, outside, n_snap_back)``."""
+    N, dN, W, t0, P0, At, RAt, AP0 = kernels_static
+    fd = grp.foundation
+    (so, st), (eo, et) = fd._start, fd._end
+    c = np.ascontiguousarray
+    ng, nf, nd = grp.ng, grp.nf, grp.nd
+    out = np.empty((5, ng))
+    status = np.empty(ng, np.int8)
+    jac = np.empty(ng)
+    outside = np.empty(ng, np.bool_)
+    f = np.empty((nf, nd))
+    K = np.empty((nf, nd, nd)) if tangent else np.empty((0, nd, nd))
+    hold = _NO_HOLD if frozen is None else c(np.broadcast_to(frozen, (ng,)), np.int64)
+    bad = _contact(bool(geo), bool(tangent), bool(grp.axisymmetric), int(nsub), float(theta),
+                   grp.thickness, grp._touch_tol, 1e30, c(xo, float), c(xn, float), N, dN, W,
+                   t0, P0, At, RAt, AP0, c(d_start, float), c(co, float), c(cn, float), fd.A,
+                   fd.B, fd.C, so, st, eo, et, fd.s_tol, fd.cos_min, lv, c(state["p"], float),
+                   c(state["tau"], float), c(state["lam"], float), c(state["slip"], float),
+                   c(state["dissip"], float), c(state["status"], np.int8), hold,
+                   frozen is not None, out[0], out[1], out[2], out[3], out[4], status, jac,
+                   outside, f, K)
+    new_state = dict(p=out[0], tau=out[1], lam=out[2], slip=out[3], dissip=out[4],
+                     status=status)
+    for k, v in state.items():                # entries the law does not own: copied through
+        if k not in new_state:
+            new_state[k] = np.array(v, copy=True)
+    return new_state, f, (K if tangent else None), jac, outside, bad
