@@ -1,11 +1,12 @@
 """The fast paths of the contact computation against their references.
 
 * The numba kernels (``lagamine_py.laws.coulomb_numba``, optional ``fast`` extra) of the COULOMB
-  update and of the foundation projection against the NumPy code (``use_kernel = False``), the
-  reference: every state field and tangent entry, every projection field, and the contact
-  group's forces, tangent and state, over batches that visit every branch (open, touching,
-  re-contact, partial re-contact, separation, stick, slip, reversal, softening kinks, the
-  flip-flop holds, the CLASSICAL indicator, end half-lines, misses).
+  update, of the foundation projection and of the whole contact group (fused) against the NumPy
+  code (``use_kernel = False``), the reference: every state field and tangent entry, every
+  projection field, and the contact group's forces, tangent, state and failure messages, over
+  batches that visit every branch (open, touching, re-contact, partial re-contact, separation,
+  stick, slip, reversal, softening kinks, the flip-flop holds, the CLASSICAL indicator, end
+  half-lines, misses).
 * The NumPy shortcut for sub-intervals where nothing re-contacts or separates
   (``Coulomb._tangent_simple``) against the general tangent on the same points.
 """
@@ -253,3 +254,26 @@ def test_problem_kernel_setting_reaches_contact_groups():
     assert not any(g.law.use_kernel or g.foundation.use_kernel for g in contact)
     problem.set_kernel("AUTO")
     assert all(g.law.use_kernel and g.foundation.use_kernel for g in contact)
+
+
+@pytest.mark.parametrize("indicator,frozen", [("CLASSICAL", None), ("CLASSICAL", STICK),
+                                              ("PREDICTOR", None)])
+def test_contact_group_kernel_reports_the_same_failures(indicator, frozen):
+    """Softening adhesion, sliding on the cone: CLASSICAL leaves the cone (an increment
+    failure) unless the solver holds the points STICK; PREDICTOR does not (test_stability's
+    case), through the fused kernel as through NumPy."""
+    _kernels()
+    from test_contact_element import _setup
+    out = []
+    for use in (True, False):
+        law = Coulomb(KP=1e3, KT=5e2, PHI=0.3, B=0.5, HB=-20.0, INDICATOR=indicator)
+        grp, u_old, u_new, state, ctx = _setup(3, 3, False, 1.0, 1, "slip", law=law)
+        grp.set_kernel(use)
+        state["tau"] = -(law.b + law.phi * state["p"])
+        if frozen is not None:
+            ctx.freeze_contact = {grp.name: np.full(grp.ng, frozen)}
+        out.append(grp.compute(u_new - [0.02, 0.0], u_old, state, ctx))
+    assert out[0].failure == out[1].failure
+    assert (out[1].failure is not None) == (indicator == "CLASSICAL" and frozen is None)
+    _close(out[0].f, out[1].f, what="f")
+    _close(out[0].K, out[1].K, what="K")

@@ -261,7 +261,7 @@ class Coulomb(ContactLaw):
         plastic, sig, f_tr = self._loading(tau0, p0, p1, hard0, dv_c, tau_tr, active)
         if not free:
             plastic = np.where(hold == STICK, False, np.where(hold == SLIP, contact, plastic))
-        lam1, dmat, hmat, phi1 = self._return(p1, lam0, plastic, f_tr, hard0)
+        lam1, dmat, phi1 = self._return(p1, lam0, plastic, f_tr, hard0)
         dlam = np.where(plastic, lam1 - lam0, 0.0)
         if self.indicator == "PREDICTOR":     # roundoff guard at neutral loading
             dlam = np.maximum(dlam, 0.0) if free else np.where(hold == SLIP, dlam,
@@ -352,7 +352,7 @@ class Coulomb(ContactLaw):
         """Solve ``|tau_tr| - KT Lam - B(lam) - phi(lam) p1 = 0`` piece by piece over kinks,
         from ``f_tr`` (its value at ``Lam = 0``) and ``hard0`` (:meth:`_hardening` at lam0).
 
-        Returns ``lam1``, ``KT + H``, ``H`` and ``phi`` on the final piece (g,).
+        Returns ``lam1``, ``KT + H`` and ``phi`` on the final piece (g,).
         """
         kt = self.kt
         kinks = self._kinks
@@ -360,7 +360,6 @@ class Coulomb(ContactLaw):
         resid = f_tr
         done = ~plastic
         dmat = np.full_like(lam, kt)
-        hmat = np.zeros_like(lam)
         h = hard0[1] + hard0[3] * p1
         for it in range(len(kinks) + 1):                    # walk over at most two kinks
             if it:
@@ -377,7 +376,6 @@ class Coulomb(ContactLaw):
             if self._may_snap_back and np.any(finish & (kt + h <= 0.0)):
                 raise ReturnMappingError(_SNAP_BACK)
             dmat = np.where(finish, kt + h, dmat)
-            hmat = np.where(finish, h, hmat)
             if cross is None:
                 lam = np.where(finish, lam + step, lam)
                 break
@@ -387,7 +385,7 @@ class Coulomb(ContactLaw):
             if done.all():
                 break
         phi1 = self._hardening(lam)[2]
-        return lam, dmat, hmat, phi1
+        return lam, dmat, phi1
 
     def _dissipation(self, tau0, p0, dp, dv_c, lam0, dlam, sig, plastic):
         """``int |tau| dlam`` along the exact plastic path (Gauss-Legendre in lam per piece)."""

@@ -1,19 +1,24 @@
-"""Numba kernels of the contact computation: the COULOMB update and the foundation projection.
+"""Numba kernels of the contact computation: the COULOMB update, the foundation projection, and
+the whole contact group fused.
 
 The optional fast path (``pip install lagamine_py[fast]``) of
-:meth:`lagamine_py.laws.coulomb.Coulomb.update` and
-:meth:`lagamine_py.foundation.Foundation.project`: one loop over the contact points doing, point
-by point, exactly what the NumPy code does array by array (same formulas in the same order,
-same branches, same NaN handling where it matters), without the ~100 small array operations
-whose fixed cost dominates a contact group of a few hundred points.  The NumPy code stays the
-reference; results agree to round-off (bit for bit except the Gauss-Legendre sum of the
-dissipation, and BLAS's fused products in the end half-line candidates of the projection).
+:meth:`lagamine_py.laws.coulomb.Coulomb.update`, :meth:`lagamine_py.foundation.Foundation.project`
+and :meth:`lagamine_py.elements.contact.ContactGroup.compute` (with the COULOMB law against a
+Foundation): one loop over the contact points doing, point by point, exactly what the NumPy
+code does array by array (same formulas in the same order, same branches, derivatives known to
+be zero skipped the same way), without the ~100 small array operations whose fixed cost
+dominates a contact group of a few hundred points.  The NumPy code stays the reference; results
+agree bit for bit except the Gauss-Legendre sum of the dissipation (summed in another order,
+~1e-16 relative) and, in the fused group kernel, the end half-line candidates of the projection
+(NumPy takes ``perp(e_u) . t`` from BLAS, which may fuse the multiply-add).
 
-Axes: ``g`` contact point, ``k`` candidate intersection (``2 j + 2`` for ``j`` arcs: two roots per
-arc, then the two end half-lines).
+Axes: ``g`` contact point (``f*nq + q``), ``f`` face, ``q`` Gauss point, ``a`` face node, ``i``
+component, ``J`` face DOF ``2a + i``; ``k`` candidate intersection of the projection (two roots
+per arc, then the two end half-lines).
 
-Importing this module imports numba: callers import it lazily and fall back to NumPy on
-ImportError.  ``cache=True`` keeps the machine code on disk; the first call compiles.
+Importing this module imports numba: callers import it lazily
+(``lagamine_py.laws.coulomb._numba_kernels``) and fall back to NumPy on ImportError.
+``cache=True`` keeps the machine code on disk; the first call compiles.
 """
 from __future__ import annotations
 
@@ -206,7 +211,7 @@ def _coulomb_point(lv, po, tau_old, lam_old, slip_old, dissip_old, status_old, d
         if nk:
             for i in range(nk):
                 k = lv[_K1 + i]
-                if lam < k and k < ahead:
+                if lam < k < ahead:
                     ahead = k
             cross = (step > 0.0) and (lam + step > ahead)
         if not cross:
