@@ -473,26 +473,61 @@ class SolidGroup(Group):
         kind, lp, Del, conn, N, dNdX, R0, w0, dofs = arrays
         ne, nd = dofs.shape
         nq = self.nq
-        eps_e_n = np.ascontiguousarray(np.broadcast_to(state["eps_e"], (ne, nq, 4)), float)
-        peeq_n = np.ascontiguousarray(np.broadcast_to(state["peeq"], (ne, nq)), float)
+        eps_e_n = _kernel_array(state["eps_e"], (ne, nq, 4))
+        peeq_n = _kernel_array(state["peeq"], (ne, nq))
         new_state = {"eps_e": np.empty((ne, nq, 4)), "peeq": np.empty((ne, nq)),
                      "stress": np.empty((ne, nq, 4))}
         fe = np.empty((ne, nd))
         flags = np.empty(ne, np.int8)
+        u_new, u_old = _kernel_array(u_new, u_new.shape), _kernel_array(u_old, u_old.shape)
+        old, bad_old = self._kernel_start(u_old, eps_e_n) if ctx.nlgeom else _NO_START
         if tangent:
             pos = np.asarray(positions, np.int64).reshape(ne, nd, nd)
         else:
             data, pos = np.empty(0), np.empty((0, 0, 0), np.int64)
         nk.solid_kernel(bool(ctx.nlgeom), bool(tangent), bool(self.axisymmetric), kind, lp, Del,
-                        conn, np.ascontiguousarray(u_new, float),
-                        np.ascontiguousarray(u_old, float), N, dNdX, R0, w0, eps_e_n, peeq_n,
+                        conn, u_new, u_old, N, dNdX, R0, w0, eps_e_n, peeq_n, old, bad_old,
                         new_state["eps_e"], new_state["peeq"], new_state["stress"], fe, flags,
-                        data, f_out, pos, dofs)
+                        data, f_out, pos, dofs, nk.scratch_arrays(self.nen, nq))
         for code, what in ((nk.BAD_DET_F, "non-positive det F"),
                            (nk.RETURN_MAP_FAILED, "return mapping failed")):
             if (flags == code).any():
                 return self._failure(flags == code, what, state, False)
         return GroupResult(fe, None, new_state)
+
+    def _kernel_start(self, u_old, eps_e_n):
+        """``start_kernel``'s (e, q, 9) and (e,) arrays, kept while ``u_old`` and ``eps_e_n``
+        are unchanged (every Newton iteration of an increment), as ``_start_of_increment``."""
+        from .numba_kernels import scratch_arrays, start_kernel
+
+        key = self._cache.get("kernel_old_key")
+        if (key is not None and key[0].shape == u_old.shape and key[1].shape == eps_e_n.shape
+                and np.array_equal(key[0], u_old) and np.array_equal(key[1], eps_e_n)):
+            return self._cache["kernel_old"]
+        _, _, _, conn, N, dNdX, R0, _, _ = self._cache["kernel"]
+        ne, nq = R0.shape
+        old, bad_old = np.empty((ne, nq, 9)), np.empty(ne, np.int8)
+        start_kernel(bool(self.axisymmetric), conn, u_old, N, dNdX, R0, eps_e_n, old, bad_old,
+                     scratch_arrays(self.nen, nq))
+        self._cache["kernel_old_key"] = (u_old.copy(), eps_e_n.copy())
+        self._cache["kernel_old"] = (old, bad_old)
+        return old, bad_old
+
+
+#: placeholders of the NLGEOM start arrays in small strain (one compiled signature for both)
+_NO_START = (np.empty((0, 0, 9)), np.empty(0, np.int8))
+
+
+def _kernel_array(a, shape) -> np.ndarray:
+    """``a`` as a C-contiguous, writeable float array of ``shape`` (broadcast if needed): the
+    one array layout the numba kernel is compiled for (a read-only or strided view would make
+    it compile another specialisation)."""
+    a = np.asarray(a, dtype=float)
+    if a.shape != shape:
+        return np.array(np.broadcast_to(a, shape))
+    if not (a.flags.c_contiguous and a.flags.writeable):
+        return np.array(a, order="C")
+    return a
 
 
 def _weighted_force(B, s, w):
