@@ -80,7 +80,7 @@ from ..foundation import Foundation
 
 FAR = 1e30          # penetration handed to the law for a point whose line misses the foundation
 from ..laws.base import OPEN, STICK, ContactLaw, ReturnMappingError
-from ..laws.coulomb import _SNAP_BACK
+from ..laws.coulomb import _SNAP_BACK, _numba_kernels
 from .base import Group, GroupResult, StepContext
 from .shapes import gauss_1d, line_shape
 
@@ -169,7 +169,7 @@ class ContactGroup(Group):
         self._dNg = np.tile(self.dN, (nf, 1))                     # (g, a)
         # R A_t (g, 2, nd): d (R t) / d x_J, the moving normal's part of the geometric tangent
         self._RAt = np.tile(np.einsum("ij,qjJ->qiJ", _R, At), (nf, 1, 1))
-        self._x0 = self.coords0[self.face_nodes]                  # (f, a, 2) reference face
+        self._x0 = np.ascontiguousarray(self.coords0[self.face_nodes])   # (f, a, 2) reference
         self._P0, self._t0 = self._at_points(self._x0)
         self._jac_tol = 1e-14 * max(1.0, float(np.abs(self.coords0).max(initial=1.0)))
         self._start_cache = None          # see _start_penetration
@@ -445,21 +445,25 @@ class ContactGroup(Group):
     def _kernels(self):
         """:mod:`lagamine_py.laws.coulomb_numba` when this group can run fused (the law and the
         foundation both support and allow their kernels, and numba imports), else None."""
-        for part in (self.law, self.foundation):
-            if not (getattr(part, "use_kernel", False) and getattr(part, "kernel_supported", False)):
-                return None
-        from ..laws.coulomb import _numba_kernels
+        law, found = self.law, self.foundation
+        if not (getattr(law, "use_kernel", False) and getattr(law, "kernel_supported", False)
+                and getattr(found, "use_kernel", False)
+                and getattr(found, "kernel_supported", False)):
+            return None
         return _numba_kernels()
 
     def _compute_fused(self, kernels, u_new, u_old, state, ctx, tangent) -> GroupResult:
-        """:meth:`compute` through the fused kernel (same sub-intervals, start penetration,
-        failures)."""
+        """:meth:`compute` through the fused kernel (same sub-intervals, start penetration and
+        its cache, failures)."""
         geo = bool(ctx.nlgeom)
-        xo, xn = self._face_x(u_old), self._face_x(u_new)
         co, cn = self._translation(ctx, "old"), self._translation(ctx, "new")
-        nsub = self.substeps_for(xo, xn, geo)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            d_start = self._start_penetration(xo, co, geo)
+        n = getattr(self.law, "substeps", 1)
+        nsub = None if isinstance(n, str) else max(int(n), 1)       # AUTO: from the positions
+        cache = self._start_cache                 # see _start_penetration
+        if cache is not None and cache[0] == geo and cache[1] is self.foundation:
+            cache = cache[2:]
+        else:
+            cache = None
         static = getattr(self, "_kernel_static", None)
         if static is None:
             c, nq = np.ascontiguousarray, self.nq
@@ -467,19 +471,21 @@ class ContactGroup(Group):
                 c(self.N, float), c(self.dN, float), c(self.w, float), c(self._t0, float),
                 c(self._P0, float), c(self._At[:nq], float), c(self._RAt[:nq], float),
                 c(self._AP[:nq, 0, :], float))
+            self._face_nodes64 = c(self.face_nodes, np.int64)
         law = self.law
         if law._lv is None:
             law._lv = kernels.law_vector(law)
-        st, f, K, jac, outside, snap = kernels.contact_group(
-            self, static, xo, xn, d_start, co, cn, nsub, float(getattr(law, "theta", 1.0)), geo,
-            tangent, state, self._frozen(ctx), law._lv)
+        st, f, K, outside, start, (snap, degenerate, nonfinite) = kernels.contact_group(
+            self, static, u_new, u_old, co, cn, nsub, float(getattr(law, "theta", 1.0)), geo,
+            tangent, state, self._frozen(ctx), law._lv, cache)
+        if start is not None:
+            self._start_cache = (geo, self.foundation) + start
         if snap:
             raise ReturnMappingError(_SNAP_BACK)
         failure = None
-        if (jac <= self._jac_tol).any():
+        if degenerate:
             failure = f"contact {self.name}: degenerate face (zero Jacobian)"
-        elif not (np.isfinite(f).all() and np.isfinite(st["p"]).all()
-                  and np.isfinite(st["tau"]).all()):
+        elif nonfinite:
             failure = f"contact {self.name}: non-finite contact stresses"
         elif outside.any():
             failure = self._inadmissible(st, ctx, outside)

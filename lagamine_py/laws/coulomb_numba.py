@@ -466,19 +466,42 @@ def _interp(Nq, x, e, i):
 
 
 @njit(**_JIT)
-def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, xo, xn, N, dN, W, t0, P0,
-             At, RAt, AP0, d_start, co, cn, A, B, C, start_o, start_t, end_o, end_t, s_tol,
+def _penetration(geo, touch_tol, far, x, e, Nq, dNq, t0_0, t0_1, c, A, B, C, start_o, start_t,
+                 end_o, end_t, s_tol, cos_min):
+    """``ContactGroup._penetration`` of one point without derivatives: d at face positions
+    ``x`` (f, a, 2) of face ``e`` and translation ``c``; ``t0_*`` the reference tangent (axes
+    without NLGEOM).  Returns ``d`` (-far where the line misses, 0 within ``touch_tol``)."""
+    P_0, P_1 = _interp(Nq, x, e, 0), _interp(Nq, x, e, 1)
+    if geo:
+        t_0, t_1 = _interp(dNq, x, e, 0), _interp(dNq, x, e, 1)
+    else:
+        t_0, t_1 = t0_0, t0_1
+    n = math.sqrt(t_0 * t_0 + t_1 * t_1)
+    sn = n if n > 0 else 1.0
+    eu0, eu1 = t_1 / sn, -(t_0 / sn)
+    w0, w1 = -eu1, eu0
+    ok, bd, _, _, _, _, _, _ = _project_one(
+        A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, c, P_0, P_1, eu0, eu1,
+        w0 * start_t[0] + w1 * start_t[1], w0 * end_t[0] + w1 * end_t[1])
+    d = bd if ok else -far
+    return 0.0 if abs(d) <= touch_tol else d
+
+
+@njit(**_JIT)
+def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, xo, xn, N, dN, W,
+             t0, P0, At, RAt, AP0, start_needed, d_start, co, cn, A, B, C, start_o, start_t,
+             end_o, end_t, s_tol,
              cos_min, lv, p_old, tau_old, lam_old, slip_old, dissip_old, status_old, hold,
-             has_hold, p_new, tau_new, lam_new, slip_new, dissip_new, status_new, jac, outside,
-             f, K):
+             has_hold, p_new, tau_new, lam_new, slip_new, dissip_new, status_new, outside, f, K):
     """``ContactGroup.compute`` (``_integrate`` and the forces/tangent) point by point for the
     COULOMB law against a :class:`~lagamine_py.foundation.Foundation`: the same formulas in
     the same order; derivatives known to be zero are skipped as there.  Arrays: ``xo``, ``xn``
     (f, a, 2) face nodes at the start and end; ``N``, ``dN`` (q, a); ``W`` (q,); ``t0``, ``P0``
     (g, 2) reference face; ``At``, ``RAt`` (q, 2, nd) and ``AP0`` (q, nd) the element's
-    constant derivative blocks; ``d_start`` (g,) the start penetration.  Writes the new state,
-    ``jac`` |t| (g,), ``outside`` (g,) (``Coulomb.outside_cone``), ``f`` (f, nd) and ``K`` (f,
-    nd, nd) when ``tangent``; returns the number of snap-backs."""
+    constant derivative blocks; ``d_start`` (g,) the start penetration, computed here (and
+    written) when ``start_needed``.  Writes the new state, ``outside`` (g,)
+    (``Coulomb.outside_cone``), ``f`` (f, nd) and ``K`` (f, nd, nd) when ``tangent``; returns
+    ``(snap-backs, degenerate faces (|t| <= jac_tol), non-finite f, p or tau)`` as counts."""
     nf, na = xo.shape[0], xo.shape[1]
     nq = N.shape[0]
     nd = 2 * na
@@ -494,11 +517,15 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, xo, xn, N
     tl = np.empty(14)
     dx = xn - xo
     dc0, dc1 = (cn[0] - co[0]) / nsub, (cn[1] - co[1]) / nsub
-    bad = 0
+    bad = degenerate = nonfinite = 0
     for e in range(nf):
         for q in range(nq):
             g = e * nq + q
             Nq, dNq = N[q], dN[q]
+            if start_needed:
+                d_start[g] = _penetration(geo, touch_tol, far, xo, e, Nq, dNq, t0[g, 0],
+                                          t0[g, 1], co, A, B, C, start_o, start_t, end_o, end_t,
+                                          s_tol, cos_min)
             # end configuration: P, the axes' tangent, the penetration and its derivative
             P_0, P_1 = _interp(Nq, xn, e, 0), _interp(Nq, xn, e, 1)
             if geo:
@@ -646,7 +673,8 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, xo, xn, N
             abs_tau = abs(stau)
             outside[g] = abs_tau - radius > 1e-7 * (radius + abs_tau + sp) + 1e-12 * kt
             # forces and tangent (ContactGroup.compute)
-            jac[g] = n
+            degenerate += n <= jac_tol
+            nonfinite += not (math.isfinite(sp) and math.isfinite(stau))
             Rt0, Rt1 = t_1, -t_0
             vec0 = sp * Rt0 - stau * t_0
             vec1 = sp * Rt1 - stau * t_1
@@ -682,36 +710,69 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, xo, xn, N
                                 K[e, 2 * a + i, J] = kg
                             else:
                                 K[e, 2 * a + i, J] += kg
-    return bad
+        for J in range(nd):
+            nonfinite += not math.isfinite(f[e, J])
+    return bad, degenerate, nonfinite
 
 
-def contact_group(grp, kernels_static, xo, xn, d_start, co, cn, nsub, theta, geo, tangent,
-                  state, frozen, lv):
-    """:func:`_contact` for a :class:`~lagamine_py.elements.contact.ContactGroup`; returns
-    ``(new_state, f, K, jac, outside, n_snap_back)``."""
+@njit(**_JIT)
+def _faces(u_old, u_new, face_nodes, x0, xo, xn, cached, cxo, cco, co):
+    """Face node positions ``xo``, ``xn`` (f, a, 2) = ``x0 + u[face_nodes]`` (as
+    ``ContactGroup._face_x``); returns whether the cached start configuration ``cxo``, ``cco``
+    is the same (``cached`` False: there is none), compared with ``==`` as np.array_equal."""
+    same = cached and cco[0] == co[0] and cco[1] == co[1]
+    for e in range(face_nodes.shape[0]):
+        for a in range(face_nodes.shape[1]):
+            node = face_nodes[e, a]
+            for i in range(2):
+                xo[e, a, i] = x0[e, a, i] + u_old[node, i]
+                xn[e, a, i] = x0[e, a, i] + u_new[node, i]
+                if same and not xo[e, a, i] == cxo[e, a, i]:
+                    same = False
+    return same
+
+
+def contact_group(grp, kernels_static, u_new, u_old, co, cn, nsub, theta, geo, tangent, state,
+                  frozen, lv, cache):
+    """:func:`_contact` for a :class:`~lagamine_py.elements.contact.ContactGroup`.
+
+    ``nsub`` the sub-intervals (None: ``grp.substeps_for``, from the face positions);
+    ``cache`` None or the start configuration and its penetration ``(xo, co, d_start)``, reused
+    when the start positions are the same.  Returns ``(new_state, f, K, outside, start,
+    (n_snap_back, n_degenerate, n_nonfinite))`` with ``start`` None when the cache was reused,
+    else the new ``(xo, co, d_start)``."""
     N, dN, W, t0, P0, At, RAt, AP0 = kernels_static
     fd = grp.foundation
     (so, st), (eo, et) = fd._start, fd._end
     c = np.ascontiguousarray
     ng, nf, nd = grp.ng, grp.nf, grp.nd
+    xo, xn = np.empty((2, nf, nd // 2, 2))
+    co, cn = c(co, float), c(cn, float)
+    cached = cache is not None
+    cxo, cco, d_start = cache if cached else (xo, co, None)
+    reuse = _faces(c(u_old, float), c(u_new, float), grp._face_nodes64, grp._x0, xo, xn,
+                   cached, cxo, cco, co)
+    if nsub is None:
+        nsub = grp.substeps_for(xo, xn, geo)
+    if not reuse:
+        d_start = np.empty(ng)
     out = np.empty((5, ng))
     status = np.empty(ng, np.int8)
-    jac = np.empty(ng)
     outside = np.empty(ng, np.bool_)
     f = np.empty((nf, nd))
     K = np.empty((nf, nd, nd)) if tangent else np.empty((0, nd, nd))
     hold = _NO_HOLD if frozen is None else c(np.broadcast_to(frozen, (ng,)), np.int64)
-    bad = _contact(bool(geo), bool(tangent), bool(grp.axisymmetric), int(nsub), float(theta),
-                   grp.thickness, grp._touch_tol, 1e30, c(xo, float), c(xn, float), N, dN, W,
-                   t0, P0, At, RAt, AP0, c(d_start, float), c(co, float), c(cn, float), fd.A,
-                   fd.B, fd.C, so, st, eo, et, fd.s_tol, fd.cos_min, lv, c(state["p"], float),
-                   c(state["tau"], float), c(state["lam"], float), c(state["slip"], float),
-                   c(state["dissip"], float), c(state["status"], np.int8), hold,
-                   frozen is not None, out[0], out[1], out[2], out[3], out[4], status, jac,
-                   outside, f, K)
+    flags = _contact(bool(geo), bool(tangent), bool(grp.axisymmetric), int(nsub), float(theta),
+                     grp.thickness, grp._touch_tol, 1e30, grp._jac_tol, xo, xn, N, dN, W, t0, P0,
+                     At, RAt, AP0, not reuse, d_start, co, cn, fd.A, fd.B, fd.C, so, st, eo, et,
+                     fd.s_tol, fd.cos_min, lv, c(state["p"], float), c(state["tau"], float),
+                     c(state["lam"], float), c(state["slip"], float), c(state["dissip"], float),
+                     c(state["status"], np.int8), hold, frozen is not None, out[0], out[1],
+                     out[2], out[3], out[4], status, outside, f, K)
     new_state = dict(p=out[0], tau=out[1], lam=out[2], slip=out[3], dissip=out[4],
                      status=status)
     for k, v in state.items():                # entries the law does not own: copied through
         if k not in new_state:
             new_state[k] = np.array(v, copy=True)
-    return new_state, f, (K if tangent else None), jac, outside, bad
+    start = None if reuse else (xo, co.copy(), d_start)
+    return new_state, f, (K if tangent else None), outside, start, flags
