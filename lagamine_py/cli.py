@@ -30,7 +30,8 @@ def _parser() -> argparse.ArgumentParser:
                      help="sparse linear solver (overrides the deck's *CONTROLS SOLVER)")
     run.add_argument("--kernel", choices=("AUTO", "NUMPY", "NUMBA"),
                      help="solid-element kernel (overrides the deck's *CONTROLS KERNEL): NUMBA "
-                          "needs the fast extra (numba), AUTO uses it when installed")
+                          "needs the fast extra (numba); AUTO uses it when installed, from 2000 "
+                          "solid elements")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                      help="override a *PARAMETER value of the deck (repeatable)")

@@ -190,6 +190,7 @@ class PluginJ2(J2Linear):
 def test_unsupported_law_falls_back_to_numpy():
     model = load_deck(DECKS / "coulomb_block.dat")
     problem = problem_mod.build_problem(model)
+    problem.set_kernel("NUMBA")
     k = problem.kinds.index("solid")
     assert problem.fused(k)
     assert not problem.fused(problem.kinds.index("contact"))   # no kernel for contact groups
@@ -232,6 +233,17 @@ def test_evaluate_same_with_both_kernels():
     assert b.results[k].K is None and a.results[k].K is not None
     for key in a.states[k]:
         assert_close(a.states[k][key], b.states[k][key], key)
+
+
+def test_auto_uses_the_kernel_from_a_model_size(monkeypatch):
+    """AUTO: NumPy below AUTO_NUMBA_ELEMENTS solid elements, the kernel from there on."""
+    problem = problem_mod.build_problem(load_deck(DECKS / "compression_ro.dat"))
+    k = problem.kinds.index("solid")
+    n = problem.solid_elements()
+    assert n == len(problem.groups[k].dofs) and n < problem_mod.AUTO_NUMBA_ELEMENTS
+    assert problem.kernel == "AUTO" and not problem.fused(k)
+    monkeypatch.setattr(problem_mod, "AUTO_NUMBA_ELEMENTS", n)
+    assert problem.fused(k)
 
 
 def test_set_kernel_validates(monkeypatch):

@@ -14,7 +14,7 @@ CONTROL_PARAMS: tuple[Param, ...] = (
     Param("SOLVER", str, "AUTO", choices=("AUTO", "SPLU", "PARDISO"), doc="sparse linear solver"),
     Param("KERNEL", str, "AUTO", choices=("AUTO", "NUMPY", "NUMBA"),
           doc="solid elements: fused numba kernel (NUMBA, needs the fast extra), NumPy (NUMPY), "
-              "or numba where installed and the law is built in (AUTO)"),
+              "or numba from 2000 solid elements when installed and the law is built in (AUTO)"),
     Param("EXTRAPOLATION", str, "LINEAR", choices=("LINEAR", "NONE"),
           doc="first iterate of an increment: the last increment of the step, scaled (LINEAR), or none"),
     Param("FLIPFLOP", int, 4, (1, 100), doc="contact status switches or slip reversals of a point before it is frozen"),

@@ -19,6 +19,11 @@ from .pattern import Pattern
 
 SOLID, CONTACT, PRESSURE = "solid", "contact", "pressure"
 KERNELS = ("AUTO", "NUMPY", "NUMBA")
+# KERNEL=AUTO uses the numba solid kernel from this many solid elements in the model.  Below it
+# the kernel saves less than it costs to load (numba import and cached machine code 0.4 s, a
+# first compile 9 s), and the small decks keep the NumPy reference's round-off: press_slide's
+# contact decisions turn on 1e-14 (19 increments and a cut-back instead of 16 with numba).
+AUTO_NUMBA_ELEMENTS = 2_000
 
 
 def numba_available() -> bool:
@@ -78,8 +83,9 @@ class Problem:
     def set_kernel(self, kernel: str) -> None:
         """Choose how solid groups are computed: ``NUMPY`` (``compute``, the reference),
         ``NUMBA`` (the fused compute + scatter kernel, ``compute_into``; raises KeyError when
-        numba is not installed) or ``AUTO`` (numba where it imports).  Either way a group the
-        kernel does not support (a law plugin, a non-solid group) goes through NumPy."""
+        numba is not installed) or ``AUTO`` (numba where it imports, for models of at least
+        :data:`AUTO_NUMBA_ELEMENTS` solid elements).  Either way a group the kernel does not
+        support (a law plugin, a non-solid group) goes through NumPy."""
         kernel = str(kernel).upper()
         if kernel not in KERNELS:
             raise KeyError(f"KERNEL={kernel}: expected one of {', '.join(KERNELS)}")
@@ -91,9 +97,15 @@ class Problem:
             if hasattr(g, "set_kernel"):
                 g.set_kernel(kernel != "NUMPY")
 
+    def solid_elements(self) -> int:
+        """Number of solid elements of the model."""
+        return sum(len(self.groups[k].dofs) for k in self.indices(SOLID))
+
     def fused(self, k: int) -> bool:
         """Whether group ``k`` is computed by its fused kernel under the current setting."""
         if self.kernel == "NUMPY" or not hasattr(self.groups[k], "compute_into"):
+            return False
+        if self.kernel == "AUTO" and self.solid_elements() < AUTO_NUMBA_ELEMENTS:
             return False
         cache = self.__dict__.setdefault("_fused_support", {})
         if k not in cache:
