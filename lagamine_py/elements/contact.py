@@ -87,20 +87,31 @@ from .shapes import gauss_1d, line_shape
 __all__ = ["ContactGroup"]
 
 _R = np.array([[0.0, 1.0], [-1.0, 0.0]])      # R t = (t_y, -t_x): right normal
+_R_SIGN = np.array([1.0, -1.0])                 # R t = t[:, ::-1] * _R_SIGN (exact)
+
+
+def _norm(t):
+    """|t| (g,) of t (g, 2): sqrt(t_x^2 + t_y^2), as np.linalg.norm sums, without its overhead."""
+    return np.sqrt((t * t).sum(axis=-1))
+
+
+def _right(t):
+    """R t (g, 2) = (t_y, -t_x) for t (g, 2)."""
+    return t[:, ::-1] * _R_SIGN
 _I2 = np.eye(2)
 _OUT = ("p", "tau", "lam")
 
 
 def _unit(t):
     """|t| (g,), t_hat (g, 2)."""
-    n = np.linalg.norm(t, axis=-1)
+    n = _norm(t)
     return n, t / np.where(n > 0, n, 1.0)[:, None]
 
 
 def _de_u_dt(t):
     """e_u (g, 2) and d e_u / d t (g, 2, 2) for e_u = R t / |t|."""
     n, th = _unit(t)
-    e_u = th @ _R.T
+    e_u = _right(th)
     D = (_R[None] - e_u[:, :, None] * th[:, None, :]) / n[:, None, None]
     return e_u, D
 
@@ -416,9 +427,9 @@ class ContactGroup(Group):
         geo = bool(ctx.nlgeom)
         with np.errstate(invalid="ignore", divide="ignore"):
             st, D, P, t = self._integrate(u_new, u_old, state, ctx, tangent)
-        jac = np.linalg.norm(t, axis=-1)
+        jac = _norm(t)
         p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
-        Rt = t @ _R.T
+        Rt = _right(t)
         vec = p[:, None] * Rt - tau[:, None] * t                      # (p e_u + tau e_v) |t|
         wt, Dwt = self._weights(P, geo)
         f = self._Ng[:, :, None] * vec[:, None, :] * wt[:, None, None]          # (g, a, i)
