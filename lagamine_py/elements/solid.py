@@ -462,15 +462,8 @@ class SolidGroup(Group):
         if self._bad0.any():
             return self._failure(self._bad0, "non-positive reference Jacobian (or r <= 0)",
                                  state, False)
-        arrays = self._cache.get("kernel")
-        if arrays is None:
-            kind, lp, Del = nk.law_parameters(self.law)
-            c = np.ascontiguousarray
-            arrays = (kind, lp, Del, c(self.conn, np.int64), c(self.N, float),
-                      c(self.dNdX, float), c(self.R0, float), c(self.w0, float),
-                      c(self.dofs, np.int64))
-            self._cache["kernel"] = arrays
-        kind, lp, Del, conn, N, dNdX, R0, w0, dofs = arrays
+        kind, lp, Del = nk.law_parameters(self.law)          # read afresh: a few floats
+        conn, N, dNdX, R0, w0, dofs = self._kernel_geometry()
         ne, nd = dofs.shape
         nq = self.nq
         eps_e_n = _kernel_array(state["eps_e"], (ne, nq, 4))
@@ -495,6 +488,16 @@ class SolidGroup(Group):
                 return self._failure(flags == code, what, state, False)
         return GroupResult(fe, None, new_state)
 
+    def _kernel_geometry(self):
+        """``conn``, ``N``, ``dNdX``, ``R0``, ``w0``, ``dofs`` as contiguous arrays (cached)."""
+        arrays = self._cache.get("kernel")
+        if arrays is None:
+            c = np.ascontiguousarray
+            arrays = (c(self.conn, np.int64), c(self.N, float), c(self.dNdX, float),
+                      c(self.R0, float), c(self.w0, float), c(self.dofs, np.int64))
+            self._cache["kernel"] = arrays
+        return arrays
+
     def _kernel_start(self, u_old, eps_e_n):
         """``start_kernel``'s (e, q, 9) and (e,) arrays, kept while ``u_old`` and ``eps_e_n``
         are unchanged (every Newton iteration of an increment), as ``_start_of_increment``."""
@@ -504,7 +507,7 @@ class SolidGroup(Group):
         if (key is not None and key[0].shape == u_old.shape and key[1].shape == eps_e_n.shape
                 and np.array_equal(key[0], u_old) and np.array_equal(key[1], eps_e_n)):
             return self._cache["kernel_old"]
-        _, _, _, conn, N, dNdX, R0, _, _ = self._cache["kernel"]
+        conn, N, dNdX, R0, _, _ = self._kernel_geometry()
         ne, nq = R0.shape
         old, bad_old = np.empty((ne, nq, 9)), np.empty(ne, np.int8)
         start_kernel(bool(self.axisymmetric), conn, u_old, N, dNdX, R0, eps_e_n, old, bad_old,
