@@ -292,12 +292,19 @@ def _coulomb(lv, p_old, tau_old, lam_old, slip_old, dissip_old, status_old, d, d
 _NO_HOLD = np.full(0, -1, np.int64)
 
 
+def _arr(x, dtype=float):
+    """``x`` as a C-contiguous, writable array of ``dtype``: the one array type the kernels
+    are compiled for (a read-only or broadcast input would compile another specialisation)."""
+    a = np.ascontiguousarray(x, dtype)
+    return a if a.flags.writeable else a.copy()
+
+
 def coulomb_update(lv, state, d, du, dv, frozen):
     """``Coulomb._update`` through the kernel: ``(new_state, tan, n_snap_back)``.
 
     ``lv`` the law vector (:func:`law_vector`); arrays (g,) (``d``, ``du``, ``dv`` broadcast).
     The tangent arrays are rows of one (14, g) array."""
-    c = np.ascontiguousarray
+    c = _arr
     p_old = c(state["p"], float)
     g = p_old.shape[0]
     d, du, dv = (c(np.broadcast_to(np.asarray(x, float), (g,))) for x in (d, du, dv))
@@ -429,12 +436,22 @@ def _project(A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, c, P, e_u,
             dd_de[g, 0] = dd_de[g, 1] = -0.0
 
 
+def _arcs(found_obj):
+    """The arc coefficients ``A, B, C`` (j, 2) of a foundation as contiguous arrays (``A`` is a
+    strided view of the points), kept on the foundation."""
+    arcs = found_obj.__dict__.get("_kernel_arcs")
+    if arcs is None:
+        arcs = found_obj._kernel_arcs = tuple(_arr(x) for x in (found_obj.A, found_obj.B,
+                                                                 found_obj.C))
+    return arcs
+
+
 def project_points(found_obj, P, e_u, c):
     """``Foundation.project`` through the kernel: the fields of a
     :class:`~lagamine_py.foundation.Projection` as a dict."""
     g = P.shape[0]
-    P = np.ascontiguousarray(P, float)
-    e_u = np.ascontiguousarray(e_u, float)
+    P = _arr(P, float)
+    e_u = _arr(e_u, float)
     w = np.stack([-e_u[:, 1], e_u[:, 0]], axis=-1)
     (so, st), (eo, et) = found_obj._start, found_obj._end
     wt_start, wt_end = w @ st, w @ et
@@ -443,8 +460,8 @@ def project_points(found_obj, P, e_u, c):
     arc = np.empty(g, np.int64)
     s = np.empty(g)
     Q, tangent, dd_dP, dd_de = (np.empty((g, 2)) for _ in range(4))
-    _project(found_obj.A, found_obj.B, found_obj.C, so, st, eo, et, found_obj.s_tol,
-             found_obj.cos_min, np.ascontiguousarray(c, float), P, e_u, wt_start, wt_end, d,
+    _project(*_arcs(found_obj), so, st, eo, et, found_obj.s_tol,
+             found_obj.cos_min, _arr(c, float), P, e_u, wt_start, wt_end, d,
              found, arc, s, Q, tangent, dd_dP, dd_de)
     normal = np.empty((g, 2))
     normal[:, 0] = -tangent[:, 1]
@@ -744,7 +761,7 @@ def contact_group(grp, kernels_static, u_new, u_old, co, cn, nsub, theta, geo, t
     N, dN, W, t0, P0, At, RAt, AP0 = kernels_static
     fd = grp.foundation
     (so, st), (eo, et) = fd._start, fd._end
-    c = np.ascontiguousarray
+    c = _arr
     ng, nf, nd = grp.ng, grp.nf, grp.nd
     xo, xn = np.empty((2, nf, nd // 2, 2))
     co, cn = c(co, float), c(cn, float)
@@ -764,7 +781,7 @@ def contact_group(grp, kernels_static, u_new, u_old, co, cn, nsub, theta, geo, t
     hold = _NO_HOLD if frozen is None else c(np.broadcast_to(frozen, (ng,)), np.int64)
     flags = _contact(bool(geo), bool(tangent), bool(grp.axisymmetric), int(nsub), float(theta),
                      grp.thickness, grp._touch_tol, 1e30, grp._jac_tol, xo, xn, N, dN, W, t0, P0,
-                     At, RAt, AP0, not reuse, d_start, co, cn, fd.A, fd.B, fd.C, so, st, eo, et,
+                     At, RAt, AP0, not reuse, d_start, co, cn, *_arcs(fd), so, st, eo, et,
                      fd.s_tol, fd.cos_min, lv, c(state["p"], float), c(state["tau"], float),
                      c(state["lam"], float), c(state["slip"], float), c(state["dissip"], float),
                      c(state["status"], np.int8), hold, frozen is not None, out[0], out[1],
