@@ -507,9 +507,9 @@ def _penetration(geo, touch_tol, far, x, e, Nq, dNq, t0_0, t0_1, c, A, B, C, sta
 @njit(**_JIT)
 def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, xo, xn, N, dN, W,
              t0, P0, At, RAt, AP0, start_needed, d_start, co, cn, A, B, C, start_o, start_t,
-             end_o, end_t, s_tol,
-             cos_min, lv, p_old, tau_old, lam_old, slip_old, dissip_old, status_old, hold,
-             has_hold, p_new, tau_new, lam_new, slip_new, dissip_new, status_new, outside, f, K):
+             end_o, end_t, s_tol, cos_min, lv, p_old, tau_old, lam_old, slip_old, dissip_old,
+             status_old, hold, has_hold, p_new, tau_new, lam_new, slip_new, dissip_new,
+             status_new, outside, f, K):
     """``ContactGroup.compute`` (``_integrate`` and the forces/tangent) point by point for the
     COULOMB law against a :class:`~lagamine_py.foundation.Foundation`: the same formulas in
     the same order; derivatives known to be zero are skipped as there.  Arrays: ``xo``, ``xn``
