@@ -240,20 +240,29 @@ def test_contact_group_kernel_equals_numpy(nfn, gauss, ax, nlgeom, substeps, the
 
 
 def test_problem_kernel_setting_reaches_contact_groups():
-    """KERNEL=NUMPY forces the NumPy law and projection in contact groups; AUTO restores them
-    (where numba imports: the law and foundation objects of the deck support the kernel)."""
+    """KERNEL=NUMPY forces the NumPy law and projection in contact groups, NUMBA selects their
+    kernels, AUTO follows the solid kernel's size rule (press_slide is below it: NumPy)."""
     from pathlib import Path
 
     from lagamine_py.deck import load_deck
-    from lagamine_py.solver.problem import build_problem
+    from lagamine_py.solver.problem import AUTO_NUMBA_ELEMENTS, build_problem
+    _kernels()
     deck = Path(__file__).resolve().parents[1] / "decks" / "press_slide.dat"
     problem = build_problem(load_deck(deck))
     contact = [g for g, kind in zip(problem.groups, problem.kinds) if kind == "contact"]
-    assert contact
+    assert contact and problem.solid_elements() < AUTO_NUMBA_ELEMENTS
+
+    def on():
+        flags = {(g.law.use_kernel, g.foundation.use_kernel, g._kernels() is not None)
+                 for g in contact}
+        assert len(flags) == 1 and len(set(next(iter(flags)))) == 1
+        return next(iter(flags))[0]
+    problem.set_kernel("NUMBA")
+    assert on()
     problem.set_kernel("NUMPY")
-    assert not any(g.law.use_kernel or g.foundation.use_kernel for g in contact)
+    assert not on()
     problem.set_kernel("AUTO")
-    assert all(g.law.use_kernel and g.foundation.use_kernel for g in contact)
+    assert not on()
 
 
 @pytest.mark.parametrize("indicator,frozen", [("CLASSICAL", None), ("CLASSICAL", STICK),

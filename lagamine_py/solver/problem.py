@@ -93,9 +93,13 @@ class Problem:
             raise KeyError("KERNEL=NUMBA needs the optional package numba "
                            "(pip install 'lagamine_py[fast]')")
         self.kernel = kernel
-        for g in self.groups:           # contact groups: the law's and the projection's kernels
+        # contact groups (their fused numba kernel) by the same rule: loading numba costs more
+        # than it saves on a small model
+        numba = kernel == "NUMBA" or (kernel == "AUTO"
+                                      and self.solid_elements() >= AUTO_NUMBA_ELEMENTS)
+        for g in self.groups:
             if hasattr(g, "set_kernel"):
-                g.set_kernel(kernel != "NUMPY")
+                g.set_kernel(numba)
 
     def solid_elements(self) -> int:
         """Number of solid elements of the model."""
