@@ -111,10 +111,10 @@ class Foundation:
             raise ValueError(f"foundation {name!r}: needs an odd number >= 3 of points, got {m}")
         self.points = pts
         self.name = name
-        # project() through the numba kernel (lagamine_py.laws.coulomb_numba) when numba
-        # imports; False forces the NumPy path, the reference.  Exact type only.
+        # project() through the numba kernel (lagamine_py.laws.coulomb_numba) when switched on
+        # and numba imports; off by default (the NumPy path is the reference).  Exact type only.
         self.kernel_supported = type(self) is Foundation
-        self.use_kernel = self.kernel_supported
+        self.use_kernel = False               # switched on by ContactGroup.set_kernel (KERNEL=)
         self.s_tol = float(s_tol)
         self.cos_min = float(cos_min)
         X0, X1, X2 = pts[0:-1:2], pts[1::2], pts[2::2]

@@ -162,11 +162,11 @@ class Coulomb(ContactLaw):
             # AUTO is resolved by the contact element (this law integrates each sub-interval
             # exactly; sub-intervals only refine the rotation of the local axes)
             raise ParamError(f"SUBTOL must be > 0 with SUBSTEPS=AUTO, got {self.subtol:g}")
-        # the numba kernel (lagamine_py.laws.coulomb_numba) when numba imports: the same update
-        # point by point.  Exact type only (a subclass may change anything); False forces the
-        # NumPy path, the reference.
+        # the numba kernel (lagamine_py.laws.coulomb_numba), when switched on and numba imports:
+        # the same update point by point.  Exact type only (a subclass may change anything).
+        # Off by default: the NumPy path is the reference, and a first compile takes ~10 s.
         self.kernel_supported = type(self) is Coulomb
-        self.use_kernel = self.kernel_supported
+        self.use_kernel = False               # switched on by ContactGroup.set_kernel (KERNEL=)
         self._lv = None                       # the kernel's parameter vector, on first use
         # the finite clipping kinks of B(lam) and phi(lam) (softening only); without them the
         # return finishes in one piece and the dissipation integral has one piece

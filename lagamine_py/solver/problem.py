@@ -257,8 +257,10 @@ def build_problem(model) -> Problem:
         blocks.append(None)
 
     pattern = Pattern(model.ndof, [g.dofs for g in groups])
-    return Problem(model, groups, kinds, names, blocks, pressure_groups, foundations, pattern,
-                   advice)
+    problem = Problem(model, groups, kinds, names, blocks, pressure_groups, foundations, pattern,
+                      advice)
+    problem.set_kernel("AUTO")       # a problem used directly behaves as a run's default
+    return problem
 
 
 # Penalties outside this range of E/h (h the face length) are reported: too soft a KP lets the
