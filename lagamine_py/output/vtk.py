@@ -143,10 +143,33 @@ def _vec3(a: np.ndarray) -> np.ndarray:
     return np.column_stack([a, np.zeros(len(a))]) if a.shape[1] == 2 else a
 
 
-def _array(values: np.ndarray, name: str, components: tuple[str, ...] = ()):
-    from vtk.util.numpy_support import numpy_to_vtk
+_VTK = None
 
-    arr = numpy_to_vtk(np.ascontiguousarray(values), deep=True)
+
+def _vtk():
+    """The VTK classes this writer uses, imported on first use from the ``vtkmodules``
+    sub-packages: 0.2 s, against 0.7 s for the whole ``vtk`` package, which was most of the
+    output cost of a short run."""
+    global _VTK
+    if _VTK is None:
+        from types import SimpleNamespace
+
+        from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+        from vtkmodules.vtkCommonCore import (VTK_UNSIGNED_CHAR, vtkDoubleArray, vtkIntArray,
+                                              vtkPoints, vtkStringArray)
+        from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkUnstructuredGrid
+        from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridWriter
+        _VTK = SimpleNamespace(
+            numpy_to_vtk=numpy_to_vtk, numpy_to_vtkIdTypeArray=numpy_to_vtkIdTypeArray,
+            VTK_UNSIGNED_CHAR=VTK_UNSIGNED_CHAR, vtkDoubleArray=vtkDoubleArray,
+            vtkIntArray=vtkIntArray, vtkPoints=vtkPoints, vtkStringArray=vtkStringArray,
+            vtkCellArray=vtkCellArray, vtkUnstructuredGrid=vtkUnstructuredGrid,
+            vtkXMLUnstructuredGridWriter=vtkXMLUnstructuredGridWriter)
+    return _VTK
+
+
+def _array(values: np.ndarray, name: str, components: tuple[str, ...] = ()):
+    arr = _vtk().numpy_to_vtk(np.ascontiguousarray(values), deep=True)
     arr.SetName(name)
     for k, comp in enumerate(components):
         arr.SetComponentName(k, comp)
@@ -155,9 +178,8 @@ def _array(values: np.ndarray, name: str, components: tuple[str, ...] = ()):
 
 def _grid(points: np.ndarray, conn: list[np.ndarray], types: list[np.ndarray]):
     """vtkUnstructuredGrid from points (n, 3), connectivity chunks (c, k) and their types (c,)."""
-    import vtk
-    from vtk.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
-
+    vtk = _vtk()
+    numpy_to_vtk, numpy_to_vtkIdTypeArray = vtk.numpy_to_vtk, vtk.numpy_to_vtkIdTypeArray
     grid = vtk.vtkUnstructuredGrid()
     pts = vtk.vtkPoints()
     pts.SetData(numpy_to_vtk(np.ascontiguousarray(points, float), deep=True))
@@ -173,13 +195,14 @@ def _grid(points: np.ndarray, conn: list[np.ndarray], types: list[np.ndarray]):
 
 
 def _write_vtu(grid, path: Path) -> None:
-    import vtk
-
-    writer = vtk.vtkXMLUnstructuredGridWriter()
+    writer = _vtk().vtkXMLUnstructuredGridWriter()
     writer.SetFileName(str(path))
     writer.SetInputData(grid)
     writer.SetDataModeToAppended()
     writer.EncodeAppendedDataOff()
+    # LZ4 rather than the default zlib: 17x faster to write, files 1.24x larger (160x80 body:
+    # 5.2 against 88.9 ms, 4.0 against 3.2 MB; uncompressed 6.5 MB)
+    writer.SetCompressorTypeToLZ4()
     if not writer.Write():
         raise OSError(f"could not write {path}")
 
@@ -245,7 +268,7 @@ class VtkWriter(Writer):
 
     # -- parts ---------------------------------------------------------------------------
     def _body_grid(self, r: IncrementResult):
-        import vtk
+        vtk = _vtk()
 
         n = len(r.coords0)
         conn = [np.asarray(c["conn"]) for c in r.cells]
@@ -283,7 +306,7 @@ class VtkWriter(Writer):
         return grid
 
     def _contact_grid(self, r: IncrementResult):
-        import vtk
+        vtk = _vtk()
 
         cps = r.contacts
         x = np.concatenate([np.asarray(cp.x, float).reshape(-1, 2) for cp in cps])
@@ -309,7 +332,7 @@ class VtkWriter(Writer):
         return grid
 
     def _foundation_grid(self, r: IncrementResult):
-        import vtk
+        vtk = _vtk()
 
         lines = [sample_arcs(p) for p in r.foundations.values()]
         start = np.cumsum([0] + [len(s) for s in lines[:-1]])
