@@ -254,7 +254,7 @@ def _outline(nen: int) -> list[int]:
 
 
 def _cells(grid) -> list[np.ndarray]:
-    from vtk.util.numpy_support import vtk_to_numpy
+    from vtkmodules.util.numpy_support import vtk_to_numpy
     conn = vtk_to_numpy(grid.GetCells().GetConnectivityArray())
     offs = vtk_to_numpy(grid.GetCells().GetOffsetsArray())
     return [conn[offs[k]:offs[k + 1]] for k in range(len(offs) - 1)]
@@ -271,9 +271,9 @@ class _Frame:
 
 
 def _frame(state: State, body: Path, foundation: Path | None, swap: bool) -> _Frame:
-    import vtk
-    from vtk.util.numpy_support import vtk_to_numpy
-    reader = vtk.vtkXMLUnstructuredGridReader()
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+    reader = vtkXMLUnstructuredGridReader()
     reader.SetFileName(str(body))
     reader.Update()
     grid = reader.GetOutput()
