@@ -26,6 +26,7 @@ from numba import njit
 from ..laws.elastic import LinearElastic
 from ..laws.j2 import YIELD_RTOL, J2Linear
 from ..laws.ramberg_osgood import RambergOsgood
+from ..numba_scalars import nmax as _nmax, nmin as _nmin
 
 __all__ = ["ELASTIC", "J2_LINEAR", "RAMBERG_OSGOOD", "law_parameters", "scratch_arrays",
            "solid_kernel", "start_kernel", "OK", "BAD_DET_F", "RETURN_MAP_FAILED"]
@@ -76,23 +77,7 @@ def scratch_arrays(nen: int, nq: int) -> tuple:
 
 
 # --------------------------------------------------------------------------------------------
-# scalar helpers (NumPy's NaN semantics where the NumPy path relies on them)
-
-@njit(**_JIT)
-def _nmin(a, b):
-    """np.minimum of two scalars (NaN propagates)."""
-    if a != a or b != b:
-        return math.nan
-    return a if a < b else b
-
-
-@njit(**_JIT)
-def _nmax(a, b):
-    """np.maximum of two scalars (NaN propagates)."""
-    if a != a or b != b:
-        return math.nan
-    return a if a > b else b
-
+# scalar helpers (min and max with NumPy's NaN semantics: lagamine_py.numba_scalars)
 
 @njit(**_JIT)
 def _sym_eig2(a, b, c):

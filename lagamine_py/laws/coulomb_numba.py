@@ -27,6 +27,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..numba_scalars import nmax as _nmax, nmin as _nmin
+
 __all__ = ["coulomb_update", "TAN_KEYS", "project_points", "law_vector", "contact_group"]
 
 _JIT = dict(cache=True, fastmath=False, error_model="numpy", nogil=True)
@@ -59,22 +61,6 @@ def law_vector(law) -> np.ndarray:
 
 # --------------------------------------------------------------------------------------------
 # scalar helpers with NumPy's NaN semantics
-
-@njit(**_JIT)
-def _nmax(a, b):
-    """np.maximum of two scalars (NaN propagates)."""
-    if a != a or b != b:
-        return math.nan
-    return a if a > b else b
-
-
-@njit(**_JIT)
-def _nmin(a, b):
-    """np.minimum of two scalars (NaN propagates)."""
-    if a != a or b != b:
-        return math.nan
-    return a if a < b else b
-
 
 @njit(**_JIT)
 def _clip01(x):
