@@ -94,7 +94,7 @@ class _Stop(Exception):
 
 
 def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
-            max_increments: int | None = None) -> dict:
+            max_increments: int | None = None, kernel: str = "AUTO") -> dict:
     """Run press-then-slide at ``nx`` x ``ny``; return the measurements (a JSON-able dict).
 
     ``max_increments`` stops the run after that many converged increments (status
@@ -115,6 +115,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     t_deck = time.perf_counter() - t0
     for step in model.steps:
         step.controls["SOLVER"] = solver
+        step.controls["KERNEL"] = kernel
     t0 = time.perf_counter()
     problem = problem_mod.build_problem(model)
     t_build = time.perf_counter() - t0
@@ -200,7 +201,9 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         "status": status, "message": message,
         "increments": timers.n["vtk"], "iterations": iters,
         "bulk_evaluations": timers.n["bulk"],
-        "solver": solver, "solver_used": sorted({type(s).__name__ for s in impl}),
+        "solver": solver, "kernel": kernel,
+        "fused_groups": int(sum(problem.fused(k) for k in range(len(problem.groups)))),
+        "solver_used": sorted({type(s).__name__ for s in impl}),
         "pardiso_analyses": int(sum(getattr(s, "analyses", 0) for s in impl)),
         "t_deck": t_deck, "t_build": t_build, "t_run": t_run, "times": t,
         "cpu_run": cpu_run, "cpu_times": cpu, "load_average": os.getloadavg(),
@@ -475,7 +478,8 @@ def report(results: list[dict], png: Path | None, basis: str = "cpu") -> str:
     log-log plot.  ``non-factor / factor``: everything but the factorisation over the
     factorisation; with CPU time the factorisation counts the CPU of all MKL threads, so the
     column ``bound`` also gives the ratio against half of it (perfect 2-thread scaling: the
-    largest the wall-time ratio can be on 2 idle cores)."""
+    largest the wall-time ratio can be on 2 idle cores); with wall time (an idle machine) the
+    ratio is the measured one and ``bound`` is left empty."""
     results = [r for r in results if basis != "cpu" or r.get("cpu_times")]
     head = ("| mesh | DOFs | status | incr. | Newton it. | " + " | ".join(COLUMNS)
             + " | total | non-factor / factor | bound (2 threads) | output share | "
@@ -492,7 +496,8 @@ def report(results: list[dict], png: Path | None, basis: str = "cpu") -> str:
             f"| {r['nx']}x{r['ny']} | {r['dofs']} | {_status(r['status'])} "
             f"| {r['increments']} | {r['iterations']} | "
             + " | ".join(f"{1e3 * per[c]:.1f}" for c in COLUMNS)
-            + f" | {1e3 * total:.1f} | {ratio:.2f} | {2 * ratio:.2f} | {out / total:.3f} "
+            + f" | {1e3 * total:.1f} | {ratio:.2f} | "
+            + (f"{2 * ratio:.2f}" if basis == "cpu" else "-") + f" | {out / total:.3f} "
             f"| {1e3 * r['t_run'] / max(r['iterations'], 1):.0f} "
             f"| {load[0]:.1f} | {r['peak_rss_mb']:.0f} |" if load else " | - | "
             f"{r['peak_rss_mb']:.0f} |")
@@ -547,6 +552,7 @@ def main(argv=None) -> int:
     p.add_argument("--timeout", type=float, default=None, help="seconds per size")
     p.add_argument("--max-increments", type=int, nargs="+", default=[0],
                    help="per size (0: the whole run); one value applies to every size")
+    p.add_argument("--kernel", default="AUTO", choices=("AUTO", "NUMPY", "NUMBA"))
     p = sub.add_parser("one")
     p.add_argument("nx", type=int)
     p.add_argument("ny", type=int)
@@ -554,6 +560,7 @@ def main(argv=None) -> int:
     p.add_argument("--json", type=Path)
     p.add_argument("--keep", help="work directory to keep (deck and output)")
     p.add_argument("--max-increments", type=int)
+    p.add_argument("--kernel", default="AUTO", choices=("AUTO", "NUMPY", "NUMBA"))
     p = sub.add_parser("assembly")
     p.add_argument("--nx", type=int, default=160)
     p.add_argument("--ny", type=int, default=80)
@@ -568,7 +575,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     if args.cmd == "one":
-        res = run_one(args.nx, args.ny, args.solver, args.keep, args.max_increments)
+        res = run_one(args.nx, args.ny, args.solver, args.keep, args.max_increments, args.kernel)
         text = json.dumps(res, indent=1)
         if args.json:
             args.json.write_text(text)
@@ -580,7 +587,7 @@ def main(argv=None) -> int:
         for (nx, ny), limit in zip(args.sizes, limits):
             out = args.json.with_name(f"{args.json.stem}_{nx}x{ny}.json")
             cmd = [sys.executable, __file__, "one", str(nx), str(ny), "--solver", args.solver,
-                   "--json", str(out)] + (["--max-increments", str(limit)] if limit else [])
+                   "--kernel", args.kernel, "--json", str(out)] + (["--max-increments", str(limit)] if limit else [])
             print(f"== {nx}x{ny}: {' '.join(cmd)}", flush=True)
             try:
                 subprocess.run(cmd, timeout=args.timeout, capture_output=True)
