@@ -155,6 +155,7 @@ class Controller:
         free = FreeDofs(self.problem.pattern, loads.constrained)
         log.info("step %d %s: period %g, dt0 %g, %d constrained DOFs", si + 1, step.name, T,
                  step.dt0, len(loads.constrained))
+        self._log_kernel(controls["KERNEL"])
         for w in self.writers:
             w.start_step(si + 1, step)
         while T - t > 1e-12 * T:
@@ -196,6 +197,17 @@ class Controller:
         self.reached = loads.reached(model)
         self.time_offset += T
         self.progress.end()
+
+    def _log_kernel(self, setting: str) -> None:
+        """Say how the solid groups are computed, once per change (a first use of the numba
+        kernel compiles it for ~10 s: a user should know why the first increment waits)."""
+        solids = self.problem.indices(SOLID)
+        fused = sum(self.problem.fused(k) for k in solids)
+        text = (f"numba kernel for {fused} of {len(solids)} solid group(s) (KERNEL={setting}; "
+                "compiled on first use, then cached)" if fused else f"NumPy (KERNEL={setting})")
+        if text != getattr(self, "_kernel_text", None):
+            log.info("solid elements computed by %s", text)
+            self._kernel_text = text
 
     def _attempt(self, step, loads: StepLoads, free, solver, settings, t, dt, start=None):
         model, problem = self.model, self.problem
