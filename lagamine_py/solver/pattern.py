@@ -55,9 +55,11 @@ class Pattern:
         return (dofs[:, :, None] * self.ndof + dofs[:, None, :]).ravel()
 
     # -- assembly ------------------------------------------------------------------------
-    def assemble_data(self, blocks: list[np.ndarray | None]) -> np.ndarray:
-        """CSR ``data`` (nnz,) of the sum of the groups' (e, nd, nd) blocks (None: group skipped)."""
-        data = np.zeros(self.nnz)
+    def assemble_data(self, blocks: list[np.ndarray | None],
+                      out: np.ndarray | None = None) -> np.ndarray:
+        """CSR ``data`` (nnz,) of the sum of the groups' (e, nd, nd) blocks (None: group skipped),
+        added to ``out`` when given (what fused kernels have already added there)."""
+        data = np.zeros(self.nnz) if out is None else out
         for pos, K in zip(self.positions, blocks):
             if K is not None and pos.size:
                 np.add.at(data, pos, np.asarray(K, float).ravel())

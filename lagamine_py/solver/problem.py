@@ -149,12 +149,9 @@ class Problem:
             fk = vectors[k] if fused[k] else self.pattern.group_vector(k, r.f)
             f_int += fk
             scale = max(scale, float(np.linalg.norm(fk)))
-        if tangent and data is None:
-            data = self.pattern.assemble_data([r.K for r in results])
-        elif tangent:           # after the fused groups (solids come first), as assemble_data
-            for k, r in enumerate(results):
-                if not fused[k] and r.K is not None and self.pattern.positions[k].size:
-                    np.add.at(data, self.pattern.positions[k], np.asarray(r.K, float).ravel())
+        if tangent:             # the other groups' blocks, after the fused ones (solids first)
+            data = self.pattern.assemble_data([None if f else r.K for f, r in zip(fused, results)],
+                                              out=data)
         return Evaluation(f_int, data, [r.state for r in results], scale, results)
 
     def check_tangent(self, u_new: np.ndarray, u_old: np.ndarray, states: list[dict], ctx,
