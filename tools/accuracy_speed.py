@@ -283,6 +283,10 @@ def ps_points() -> list[dict[str, str]]:
     pts += vary(dict(base, **ps_mesh(8, 4)), ETYPE=("Q4PE",), DT=(0.2,), NLGEOM=("NO",))
     pts += [dict(base, **ps_mesh(8, 4), ETYPE="Q4PE", DT="0.2", NLGEOM="NO"),
             dict(base, **ps_mesh(32, 16), ETYPE="Q4PE")]
+    # the same choices with the onset of full sliding sampled finely (DT = 0.003125 from the start
+    # of the slide): the model's error apart from how coarse increments cut the knee of T(t)
+    pts += vary(dict(base, DT="0.003125"), MESH=(ps_mesh(8, 4),), ETYPE=("Q4PE", "Q8PER"),
+                GAUSS=(2,), THETA=(0, 0.5), NLGEOM=("NO",))
     return unique([base] + pts)
 
 
