@@ -37,3 +37,19 @@ def test_extrapolation_needs_far_fewer_newton_iterations_for_the_same_end_state(
         assert P == pytest.approx(6000.0, rel=1e-3)       # 200 MPa x 30 mm (current length)
         assert abs(T) == pytest.approx(0.2 * P, rel=1e-6)
     assert P_lin == pytest.approx(P_none, rel=1e-6)
+
+
+def test_energy_test_does_not_tighten_with_the_predictor(tmp_path):
+    """The energy test is relative to the first iteration's energy.  With the extrapolated first
+    iterate that energy is only the predictor's error, so without the predicted part's own
+    energy |d.K d| in the reference a stiff-KT block (24 000 E/h: its residual stalls at its
+    round-off floor, ~4e-8 of F) stopped with exit 3 in the press step.  It must run, and slide
+    at the Coulomb closed form T = phi P + B A."""
+    from lagamine_py.checks import evaluate_checks
+    from lagamine_py.deck import load_deck
+    deck = Path(__file__).resolve().parents[1] / "tools" / "study_decks" / "block_study.dat"
+    params = {"KP": "2e6", "KT": "2e9"}
+    outcome, _, _ = run_deck(deck, tmp_path, parameters=params)
+    assert outcome.status == 0, outcome.message
+    (check,) = evaluate_checks(load_deck(deck, parameters=params).checks, tmp_path)
+    assert check["error"] < 1e-6, check
