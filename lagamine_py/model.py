@@ -138,10 +138,15 @@ class FoundationMotion:
     where: Where | None = None
 
 
+#: ``*OUTPUT, FIELDS=`` names: what the VTK body files carry besides the mesh and the ids
+OUTPUT_FIELDS = {"U": "displacement", "S": "stress (components and von Mises)",
+                 "PEEQ": "equivalent plastic strain", "RF": "reaction forces"}
+
+
 @dataclass
 class OutputRequest:
     frequency: int = 1
-    fields: tuple[str, ...] = ()
+    fields: tuple[str, ...] = ()      # subset of OUTPUT_FIELDS; empty: all of them
     contact: bool = True
 
 

@@ -278,7 +278,8 @@ def _frame(state: State, body: Path, foundation: Path | None, swap: bool) -> _Fr
     reader.Update()
     grid = reader.GetOutput()
     X = vtk_to_numpy(grid.GetPoints().GetData())[:, :2]
-    U = vtk_to_numpy(grid.GetPointData().GetArray("displacement"))[:, :2]
+    disp = grid.GetPointData().GetArray("displacement")     # absent under *OUTPUT, FIELDS= without U
+    U = vtk_to_numpy(disp)[:, :2] if disp is not None else np.zeros_like(X)
     axes = [1, 0] if swap else [0, 1]
     x, X = (X + U)[:, axes], X[:, axes]
     cells = [c[_outline(len(c))] for c in _cells(grid)]

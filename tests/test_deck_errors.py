@@ -54,6 +54,8 @@ BOUND_LINE = ", ".join(f"{k}={v}" for k, v in {"E": 100, "NU": 0.3, BOUND_KEY: B
 CASES = [
     ("unknown keyword", edit("*SOLID,", "*NODES\n5, 2, 2\n*SOLID,"), "*NODES", "NODES",
      ["unknown keyword", "did you mean *NODE?"]),
+    ("unknown output field", edit("*END STEP", "*OUTPUT, FIELDS=U/PEQ\n*END STEP"),
+     "*OUTPUT, FIELDS=U/PEQ", "OUTPUT", ["unknown field 'PEQ'", "did you mean PEEQ?", "U, S, PEEQ, RF"]),
     ("unknown parameter", edit("MATERIAL=M\n", "MATERIAL=M, THICKNES=2\n"),
      "*SOLID, ELSET=E, MATERIAL=M, THICKNES=2", "SOLID", ["unknown parameter THICKNES", "did you mean THICKNESS?"]),
     ("missing required parameter", edit("TYPE=Q4PE, ELSET=E", "ELSET=E"), "*ELEMENT, ELSET=E", "ELEMENT",

@@ -329,3 +329,26 @@ def test_resume_appends_and_drops_what_came_after_the_restart_point(tmp_path, ho
     assert np.array_equal(read_vtu(tmp_path / "deck_0001.vtu")["point:displacement"][:, :2], again[0].u)
     log = (tmp_path / "deck.log").read_text()
     assert "run of deck deck started" in log and "run of deck deck resumed" in log
+
+
+@pytest.mark.parametrize("fields, present, absent", [
+    (("S",), {"point:stress", "point:von_mises", "cell:S11", "cell:von_mises"},
+     {"point:displacement", "point:reaction", "point:PEEQ", "cell:PEEQ"}),
+    (("U", "PEEQ"), {"point:displacement", "point:PEEQ", "cell:PEEQ"},
+     {"point:stress", "point:reaction", "cell:S11", "cell:von_mises"}),
+    ((), {"point:displacement", "point:reaction", "point:stress", "point:PEEQ", "cell:S11"}, set()),
+])
+def test_output_fields_select_the_vtk_arrays(tmp_path, fields, present, absent):
+    """*OUTPUT, FIELDS= limits the body files' arrays (the mesh and the ids are always there);
+    the arrays written are the same values as with every field."""
+    model, q8, q4 = build_mesh()
+    w = default_writers(tmp_path, model, names=("VTK",))[0]
+    w.start_run()
+    w.start_step(1, Step(name="LOAD", output=OutputRequest(1, fields, True)))
+    r = make_result(model, q8, q4)
+    w.increment(r)
+    body = read_vtu(tmp_path / "deck_0000.vtu")
+    assert present <= set(body) and not (absent & set(body)), sorted(body)
+    assert {"point:node_id", "cell:element_id"} <= set(body)
+    if "point:displacement" in present:
+        assert np.array_equal(body["point:displacement"][:, :2], r.u)

@@ -16,8 +16,8 @@ import numpy as np
 from .. import registry
 from ..elements.shapes import gauss_quad, quad_shape
 from ..model import (Amplitude, Boundary, CLoad, ContactLawSpec, ContactSpec, DLoad, ElementBlock,
-                     FoundationMotion, FoundationSpec, MaterialSpec, Model, OutputRequest, Step, Surface,
-                     Where)
+                     FoundationMotion, FoundationSpec, MaterialSpec, Model, OUTPUT_FIELDS, OutputRequest,
+                     Step, Surface, Where)
 from ..registry import ParamError, did_you_mean, validate_params
 from ..solver.controls import CONTROL_PARAMS
 from .errors import Problems
@@ -758,6 +758,13 @@ class _Builder:
 
     def _kw_output(self, blk, params, data):
         fields = tuple(f.upper() for f in re.split(r"[\s/;:+]+", params["FIELDS"] or "") if f)
+        unknown = [f for f in fields if f not in OUTPUT_FIELDS]
+        if unknown:
+            self.pb.add(blk.file, blk.line, blk.keyword,
+                        f"FIELDS: unknown field {unknown[0]!r}"
+                        f"{did_you_mean(unknown[0], OUTPUT_FIELDS)}; expected some of "
+                        f"{', '.join(OUTPUT_FIELDS)} (separated by / or spaces)")
+            return
         self.step.output = OutputRequest(params["FREQUENCY"], fields, params["CONTACT"])
 
     def _kw_controls(self, blk, params, pairs):

@@ -137,7 +137,9 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
     Keyword("FOUNDATION MOTION", "step", (P("NAME", required=True), _AMP),
             Data("rows", (Col("dx"), Col("dy")), min_lines=1, max_lines=1, doc="`dx, dy`"),
             doc="rigid translation of a foundation reached at the step end"),
-    Keyword("OUTPUT", "step", (P("FREQUENCY", "int", default=1, low=1), P("FIELDS", "text"),
+    Keyword("OUTPUT", "step", (P("FREQUENCY", "int", default=1, low=1), P("FIELDS", "text",
+                               doc="fields of the VTK body files: U, S, PEEQ, RF, separated by / or "
+                                   "spaces (default all)"),
                                P("CONTACT", "yesno", default=True)), doc="output requests"),
     Keyword("CONTROLS", "step", data=_PAIRS, doc="Newton and step-controller settings"),
     Keyword("END STEP", "step", doc="ends a step"),

@@ -263,6 +263,15 @@ class VtkWriter(Writer):
         self.counter += 1
         self._write_pvd()
 
+    def start_step(self, step_number: int, step) -> None:
+        fields = getattr(getattr(step, "output", None), "fields", ())
+        self.fields = set(fields) if fields else None          # None: every field
+
+    def _wants(self, name: str) -> bool:
+        """``*OUTPUT, FIELDS=`` of the step asks for ``name`` (U, S, PEEQ, RF), or nothing
+        was asked (all)."""
+        return getattr(self, "fields", None) is None or name in self.fields
+
     def close(self, status: int, message: str) -> None:
         pass
 
@@ -275,15 +284,20 @@ class VtkWriter(Writer):
         types = [np.full(len(cn), CELL_TYPES.get(cn.shape[1], VTK_POLYGON)) for cn in conn]
         grid = _grid(_vec3(r.coords0), conn, types)
 
-        s_nod, peeq_nod = nodal_fields(n, r.cells)
+        want_s, want_peeq = self._wants("S"), self._wants("PEEQ")
         pd = grid.GetPointData()
-        disp = _array(_vec3(r.u), "displacement")
-        pd.AddArray(disp)
-        pd.SetActiveVectors("displacement")
-        pd.AddArray(_array(_vec3(r.reaction), "reaction"))
-        pd.AddArray(_array(s_nod, "stress", STRESS_NAMES))
-        pd.AddArray(_array(von_mises(s_nod), "von_mises"))
-        pd.AddArray(_array(peeq_nod, "PEEQ"))
+        if self._wants("U"):
+            pd.AddArray(_array(_vec3(r.u), "displacement"))
+            pd.SetActiveVectors("displacement")
+        if self._wants("RF"):
+            pd.AddArray(_array(_vec3(r.reaction), "reaction"))
+        if want_s or want_peeq:
+            s_nod, peeq_nod = nodal_fields(n, r.cells)
+            if want_s:
+                pd.AddArray(_array(s_nod, "stress", STRESS_NAMES))
+                pd.AddArray(_array(von_mises(s_nod), "von_mises"))
+            if want_peeq:
+                pd.AddArray(_array(peeq_nod, "PEEQ"))
         node_ids = getattr(self.model, "node_ids", None)
         if node_ids is not None and len(node_ids) == n:
             pd.AddArray(_array(np.asarray(node_ids, np.int64), "node_id"))
@@ -298,10 +312,12 @@ class VtkWriter(Writer):
         else:
             mean, vm, ids = np.zeros((0, 5)), np.zeros(0), np.zeros(0, np.int64)
         cd.AddArray(_array(ids, "element_id"))
-        for k, name in enumerate(STRESS_NAMES):
-            cd.AddArray(_array(mean[:, k], name))
-        cd.AddArray(_array(vm, "von_mises"))
-        cd.AddArray(_array(mean[:, 4], "PEEQ"))
+        if want_s:
+            for k, name in enumerate(STRESS_NAMES):
+                cd.AddArray(_array(mean[:, k], name))
+            cd.AddArray(_array(vm, "von_mises"))
+        if want_peeq:
+            cd.AddArray(_array(mean[:, 4], "PEEQ"))
         self._add_time(grid, r, vtk)
         return grid
 
