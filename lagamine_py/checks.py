@@ -167,14 +167,22 @@ def _last_increment(tab: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return _rows(tab, mask)
 
 
-def _one_contact(totals: dict[str, np.ndarray], params: dict[str, Any]) -> dict[str, np.ndarray]:
+def _one_contact(tab: dict[str, np.ndarray], params: dict[str, Any],
+                 name: str = "contact_totals.csv") -> dict[str, np.ndarray]:
     """Rows of contact pair ``CONTACT=`` if given, else of the first pair in the table."""
-    names = totals["contact"]
+    names = tab["contact"]
     want = params.get("CONTACT", names[0])
     mask = np.array([str(n).upper() == str(want).upper() for n in names])
     if not mask.any():
-        raise CheckError(f"contact_totals.csv has no contact {want!r}")
-    return _rows(totals, mask)
+        raise CheckError(f"{name} has no contact {want!r}")
+    return _rows(tab, mask)
+
+
+def _points(run: RunResults, columns: tuple[str, ...], params: dict[str, Any]) -> dict[str, np.ndarray]:
+    """contact.csv rows of one contact pair (``CONTACT=``, else the first), when the table names
+    its pairs; every row of a table written before it had the ``contact`` column."""
+    tab = _table(run, "contact.csv", columns)
+    return _one_contact(tab, params, "contact.csv") if "contact" in tab else tab
 
 
 def _rel(measured: float, exact: float) -> float:
@@ -234,7 +242,7 @@ def _centre(params: dict[str, Any], x: np.ndarray, p: np.ndarray) -> float:
 def check_hertz(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
     R, E, nu = (_num(params, k) for k in ("R", "E", "NU"))
     sym = _num(params, "SYMMETRY", 1.0)
-    pts = _last_increment(_table(run, "contact.csv", ("x", "p")))
+    pts = _last_increment(_points(run, ("x", "p"), params))
     x, p = pts["x"].astype(float), pts["p"].astype(float)
     xc = x - _centre(params, x, p)
     a, p0 = fit_hertz(xc, p)
@@ -309,7 +317,7 @@ def check_cattaneo(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
     P, R, E, nu, phi, qratio = (_num(params, k) for k in ("P", "R", "E", "NU", "PHI", "QRATIO"))
     sym = _num(params, "SYMMETRY", 1.0)
     totals = _one_contact(_table(run, "contact_totals.csv", ("P", "T", "contact")), params)
-    pts = _table(run, "contact.csv", ("x", "p", "tau", "status"))
+    pts = _points(run, ("x", "p", "tau", "status"), params)
     last = totals["step"][-1]
     totals = _rows(totals, totals["step"] == last)
     pts = _rows(pts, pts["step"] == last)
@@ -357,7 +365,7 @@ def check_coulomb(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
 @register_check("PENETRATION")
 def check_penetration(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
     d_cf = _num(params, "P") / _num(params, "KP")
-    pts = _last_increment(_table(run, "contact.csv", ("gap", "status")))
+    pts = _last_increment(_points(run, ("gap", "status"), params))
     closed = np.array([str(s) != "open" for s in pts["status"]])
     if not closed.any():
         raise CheckError("no contact point is closed at the last increment")

@@ -338,3 +338,26 @@ def test_check_columns_and_registering_a_type(tmp_path):
         assert check_columns(res) == {"K_error": pytest.approx(0.2), "K_T": 12.0, "K_T_cf": 10.0}
     finally:
         CHECKS.pop("CONSTANT_T")
+
+
+def test_contact_points_of_the_named_pair_only(tmp_path):
+    """contact.csv names its pairs: a check reads the pair of CONTACT= (default the first), not
+    the points of every pair.  A second pair with a Hertz field 3 % wider would otherwise be
+    fitted together with the exact one."""
+    x = gauss_points(0.0, 2.0, 23)
+    pairs = []
+    for name, a in (("ARC->FLAT", A_HZ), ("OTHER->FLAT", 1.03 * A_HZ)):
+        rows = contact_rows([(xi, pi, 0.0, pi / 1e8, "stick" if pi > 0 else "open")
+                             for xi, pi in zip(x, hertz_p(x, a, P0_HZ))])
+        rows["contact"] = [name] * len(x)
+        pairs.append(rows)
+    write_csv(tmp_path / "contact.csv", concat(pairs))
+    write_csv(tmp_path / "contact_totals.csv", {"step": [1, 1], "increment": [1, 1], "time": [1.0, 1.0],
+                                                "contact": ["ARC->FLAT", "OTHER->FLAT"],
+                                                "P": [P / 2, P / 2], "T": [0.0, 0.0]})
+    (first,) = evaluate_checks([hertz_check()], tmp_path)
+    (named,) = evaluate_checks([hertz_check(CONTACT="other->flat")], tmp_path)
+    assert first["message"] == "" and first["errors"]["a"] < 1e-10
+    assert named["errors"]["a"] == pytest.approx(0.03, rel=1e-8)
+    (missing,) = evaluate_checks([hertz_check(CONTACT="NONE->FLAT")], tmp_path)
+    assert "contact.csv has no contact 'NONE->FLAT'" in missing["message"]

@@ -68,3 +68,32 @@ def test_bad_tolerance_is_a_usage_error(tmp_path):
     assert main(["compare", str(tmp_path / "run"), str(tmp_path / "run"), "--tol", "pp=1"]) == 2
     with pytest.raises(ValueError, match="unknown quantity"):
         parse_tolerances(["zz=1e-3"])
+
+
+def _two_pairs(d, scale_b=1.0):
+    """contact.csv with two pairs on the same element and Gauss numbers (two faces of one
+    element): only the ``contact`` column tells their points apart."""
+    d.mkdir(parents=True, exist_ok=True)
+    rows = ["step,increment,time,element,gauss,x,y,p,tau,gap,slip,lambda,status,contact"]
+    for name, p in (("A->F", 100.0), ("B->F", 300.0 * scale_b)):
+        rows += [f"1,1,1.0,7,{g},{g * 0.5},0,{p * g!r},0,0,0,0,stick,{name}" for g in (1, 2, 3)]
+    (d / "contact.csv").write_text("\n".join(rows) + "\n")
+
+
+def test_pairs_are_compared_pair_by_pair(tmp_path):
+    _two_pairs(tmp_path / "ref")
+    _two_pairs(tmp_path / "same")
+    _two_pairs(tmp_path / "changed", scale_b=1.01)
+    assert compare_dirs(tmp_path / "same", tmp_path / "ref").ok
+    rep = compare_dirs(tmp_path / "changed", tmp_path / "ref")
+    assert not rep.ok and "contact B->F" in rep.text()
+
+
+def test_a_reference_without_the_pair_column_still_compares(tmp_path):
+    """References written before contact.csv named its pairs (one pair) compare as before."""
+    write_run(tmp_path / "ref")
+    write_run(tmp_path / "run")
+    text = (tmp_path / "run" / "contact.csv").read_text().splitlines()
+    text = [text[0] + ",contact"] + [r + ",A->F" for r in text[1:]]
+    (tmp_path / "run" / "contact.csv").write_text("\n".join(text) + "\n")
+    assert compare_dirs(tmp_path / "run", tmp_path / "ref").ok

@@ -206,7 +206,8 @@ def test_pvd_lists_every_file_with_increasing_time(run):
 def test_contact_tables(run):
     out, _, results, _ = run
     header, rows = read_csv(out / "contact.csv")
-    assert header == "step,increment,time,element,gauss,x,y,p,tau,gap,slip,lambda,status".split(",")
+    # DECKS.md's columns, then the pair (an extension: decks with several contact pairs)
+    assert header == "step,increment,time,element,gauss,x,y,p,tau,gap,slip,lambda,status,contact".split(",")
     assert [(int(r[0]), int(r[1])) for r in rows] == [(1, 1)] * 3 + [(1, 3)] * 3   # output increments only
     for r, rows3 in ((results[0], rows[:3]), (results[2], rows[3:])):
         cp = r.contacts[0]
@@ -216,6 +217,7 @@ def test_contact_tables(run):
         assert [float(row[2]) for row in rows3] == [r.time] * 3
         assert [(int(row[3]), int(row[4])) for row in rows3] == [(1, 1), (1, 2), (2, 3)]
         assert [row[12] for row in rows3] == ["open", "stick", "slip"]
+        assert [row[13] for row in rows3] == ["BOT->TOOL"] * 3
     header, rows = read_csv(out / "contact_totals.csv")
     assert header == ["step", "increment", "time", "contact", "P", "T"]
     assert [(int(r[1]), r[3]) for r in rows] == [(1, "BOT->TOOL"), (2, "BOT->TOOL"), (3, "BOT->TOOL")]

@@ -26,8 +26,10 @@ from ..laws.base import STATUS_NAMES
 from ..registry import register
 from .base import IncrementResult, Writer
 
+# the trailing ``contact`` column (the pair, as in contact_totals.csv) extends DECKS.md's list:
+# a deck with several contact pairs can be read pair by pair
 CONTACT_HEADER = ("step", "increment", "time", "element", "gauss", "x", "y",
-                  "p", "tau", "gap", "slip", "lambda", "status")
+                  "p", "tau", "gap", "slip", "lambda", "status", "contact")
 TOTALS_HEADER = ("step", "increment", "time", "contact", "P", "T")
 REACTIONS_HEADER = ("step", "increment", "time", "nset", "RF1", "RF2")
 
@@ -181,7 +183,7 @@ def point_rows(head: list[str], cp) -> list[list[str]]:
     numbers = fmt(np.column_stack([x, cp.p, cp.tau, cp.gap, cp.slip, cp.lam]))
     status = np.asarray(STATUS_NAMES, dtype=object)[np.asarray(cp.status, int)]
     ids = np.column_stack([np.asarray(cp.element, int), np.asarray(cp.gauss, int)]).astype(str)
-    return [head + [*i, *v, s] for i, v, s in zip(ids.tolist(), numbers.tolist(), status)]
+    return [head + [*i, *v, s, cp.name] for i, v, s in zip(ids.tolist(), numbers.tolist(), status)]
 
 
 @register("writers", "REACTIONS")
