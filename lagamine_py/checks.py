@@ -169,10 +169,18 @@ def _last_increment(tab: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def _one_contact(tab: dict[str, np.ndarray], params: dict[str, Any],
                  name: str = "contact_totals.csv") -> dict[str, np.ndarray]:
-    """Rows of contact pair ``CONTACT=`` if given, else of the first pair in the table."""
-    names = tab["contact"]
-    want = params.get("CONTACT", names[0])
-    mask = np.array([str(n).upper() == str(want).upper() for n in names])
+    """Rows of contact pair ``CONTACT=`` if given, else of the first pair in the table.  The pair
+    is named ``SURFACE->FOUNDATION`` in the tables; ``CONTACT=`` may give the surface alone (a
+    deck's data line cannot hold ``->``), which must then name one pair."""
+    names = np.array([str(n).upper() for n in tab["contact"]])
+    want = str(params.get("CONTACT", names[0])).upper()
+    mask = names == want
+    if not mask.any():
+        mask = np.array([n.split("->")[0] == want for n in names])
+        pairs = sorted(set(names[mask]))
+        if len(pairs) > 1:
+            raise CheckError(f"CONTACT={want} names {len(pairs)} contact pairs in {name}: "
+                             f"{', '.join(pairs)}")
     if not mask.any():
         raise CheckError(f"{name} has no contact {want!r}")
     return _rows(tab, mask)

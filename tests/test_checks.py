@@ -359,5 +359,27 @@ def test_contact_points_of_the_named_pair_only(tmp_path):
     (named,) = evaluate_checks([hertz_check(CONTACT="other->flat")], tmp_path)
     assert first["message"] == "" and first["errors"]["a"] < 1e-10
     assert named["errors"]["a"] == pytest.approx(0.03, rel=1e-8)
-    (missing,) = evaluate_checks([hertz_check(CONTACT="NONE->FLAT")], tmp_path)
-    assert "contact.csv has no contact 'NONE->FLAT'" in missing["message"]
+    (by_surface,) = evaluate_checks([hertz_check(CONTACT="OTHER")], tmp_path)   # as a deck writes it
+    assert by_surface["errors"]["a"] == pytest.approx(0.03, rel=1e-8)
+    (missing,) = evaluate_checks([hertz_check(CONTACT="NONE")], tmp_path)
+    assert "has no contact 'NONE'" in missing["message"]
+
+
+def test_a_deck_names_the_pair_of_a_check_by_its_surface(tmp_path):
+    """``CONTACT=`` is the one *CHECK value that is a name (``->`` cannot be written on a data
+    line, so the surface stands for its pair); other values must still be numbers."""
+    import shutil
+    from pathlib import Path
+
+    from lagamine_py.deck import DeckError, load_deck
+    decks = Path(__file__).resolve().parents[1] / "decks"
+    shutil.copytree(decks / "meshes", tmp_path / "meshes")
+    text = (decks / "hertz.dat").read_text()
+    line = "R=10, E=200000, NU=0.3, SYMMETRY=2"
+    assert text.count(line) == 1
+    (tmp_path / "a.dat").write_text(text.replace(line, line + ", CONTACT=arc"))
+    (chk,) = load_deck(tmp_path / "a.dat").checks
+    assert chk["params"]["CONTACT"] == "ARC"
+    (tmp_path / "b.dat").write_text(text.replace(line, line + ", P=arc"))
+    with pytest.raises(DeckError, match="P must be a number"):
+        load_deck(tmp_path / "b.dat")

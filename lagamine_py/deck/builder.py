@@ -575,10 +575,15 @@ class _Builder:
         amp.where = blk.where
         self.m.amplitudes[name] = amp
 
+    #: *CHECK keys whose value is a name, not a number (the contact pair: its surface)
+    CHECK_NAMES = ("CONTACT",)
+
     def _kw_check(self, blk, params, pairs):
         values, ok = {}, True
         for row, pair in pairs:
-            if not isinstance(pair.value, Num) or not np.isfinite(pair.value):
+            if pair.key.upper() in self.CHECK_NAMES:
+                values[pair.key] = str(pair.text).strip().upper()
+            elif not isinstance(pair.value, Num) or not np.isfinite(pair.value):
                 self.pb.add(row.file, row.line, blk.keyword, f"{pair.key} must be a number, got {pair.text!r}")
                 ok = False
             else:
