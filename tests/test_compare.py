@@ -1,5 +1,4 @@
 """``lagamine-py compare``: passes within tolerance, fails outside, explains mismatches."""
-import numpy as np
 import pytest
 
 from lagamine_py.cli import main

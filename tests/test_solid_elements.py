@@ -16,7 +16,6 @@ import pytest
 from lagamine_py import registry
 from lagamine_py.elements.base import StepContext
 from lagamine_py.elements.shapes import Q4_FACES, Q8_FACES
-from lagamine_py.laws.base import MaterialLaw
 from lagamine_py.laws.elastic import LinearElastic, hooke_matrix
 
 E, NU = 200e3, 0.3

@@ -11,7 +11,7 @@
 import numpy as np
 
 from lagamine_py.elements.base import GroupResult, StepContext
-from lagamine_py.model import Boundary, CLoad, Model, Step
+from lagamine_py.model import Model
 from lagamine_py.output.base import Writer
 from lagamine_py.solver.pattern import Pattern
 from lagamine_py.solver.problem import Problem
