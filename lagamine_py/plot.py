@@ -168,9 +168,33 @@ def _along(c: dict, axisym: bool) -> tuple[str, str]:
     return col, label
 
 
+def interface_curves(c: dict, states: list[State], col: str) -> list[tuple[int, int, str, dict]]:
+    """(state index, pair index, label, {s, p, tau, stick}) of every curve of the interface
+    chart: one per state and contact pair (contact.csv names the pairs in its ``contact``
+    column; a table without it is one pair), the points of a curve in order along ``col``."""
+    step, inc = c["step"].astype(int), c["increment"].astype(int)
+    pairs = sorted(set(c["contact"])) if "contact" in c else [None]
+    curves = []
+    for i, st in enumerate(states):
+        for j, pair in enumerate(pairs):
+            m = (step == st.step) & (inc == st.increment)
+            if pair is not None:
+                m &= c["contact"] == pair
+            if not m.any():
+                continue
+            order = np.argsort(c[col][m], kind="stable")
+            stick = (np.asarray(c["status"][m][order] == "stick", bool) if "status" in c
+                     else np.zeros(int(m.sum()), bool))
+            label = st.label if len(pairs) == 1 else f"{st.label}, {pair}"
+            curves.append((i, j, label, {"s": c[col][m][order], "p": c["p"][m][order],
+                                         "tau": c["tau"][m][order], "stick": stick}))
+    return curves
+
+
 def plot_interface(res: RunResults, outdir: Path, states: list[State],
                    axisym: bool = False) -> Path | None:
-    """p and tau along the interface, one curve per state (figure 6 of the paper)."""
+    """p and tau along the interface, one curve per state (figure 6 of the paper) and contact
+    pair (line styles tell the pairs apart)."""
     c = res.table("contact.csv")
     if not c or len(c.get("p", [])) == 0 or not states:
         return None
@@ -178,16 +202,13 @@ def plot_interface(res: RunResults, outdir: Path, states: list[State],
     col, label = _along(c, axisym)
     fig, (ax_p, ax_t) = plt.subplots(2, 1, sharex=True, figsize=(8, 6.5), constrained_layout=True)
     colours = plt.cm.viridis(np.linspace(0.0, 0.9, len(states)))
-    step, inc = c["step"].astype(int), c["increment"].astype(int)
-    for st, colour in zip(states, colours):
-        m = (step == st.step) & (inc == st.increment)
-        order = np.argsort(c[col][m], kind="stable")
-        s = c[col][m][order]
-        ax_p.plot(s, c["p"][m][order], ".-", color=colour, ms=4, label=st.label)
-        ax_t.plot(s, c["tau"][m][order], ".-", color=colour, ms=4, label=st.label)
-        if "status" in c:                       # stick points ringed: the stick zone at a glance
-            stick = np.asarray(c["status"][m][order] == "stick", bool)
-            ax_t.plot(s[stick], c["tau"][m][order][stick], "o", mfc="none", mec=colour, ms=6)
+    styles = ("-", "--", ":", "-.")
+    for i, j, name, cv in interface_curves(c, states, col):
+        colour, ls = colours[i], styles[j % len(styles)]
+        ax_p.plot(cv["s"], cv["p"], ".", ls=ls, color=colour, ms=4, label=name)
+        ax_t.plot(cv["s"], cv["tau"], ".", ls=ls, color=colour, ms=4, label=name)
+        # stick points ringed: the stick zone at a glance
+        ax_t.plot(cv["s"][cv["stick"]], cv["tau"][cv["stick"]], "o", mfc="none", mec=colour, ms=6)
     ax_t.axhline(0.0, color="0.5", lw=0.6)
     if np.max(np.abs(c["tau"])) <= 1e-9 * max(float(np.max(np.abs(c["p"]))), 1e-300):
         ax_t.set_ylim(-1.0, 1.0)                # rounding noise only: do not blow it up

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from lagamine_py.cli import main as cli_main
-from lagamine_py.plot import chosen_states, is_axisymmetric, plot_run
+from lagamine_py.plot import State, chosen_states, interface_curves, is_axisymmetric, plot_run
 from runner import DECKS, run_deck
 
 SMALL = """*HEADING
@@ -194,3 +194,21 @@ def test_peeq_colour_scale(peeq, kind):
     assert got == kind
     if kind != "elastic":
         assert norm.vmax == peeq.max()
+
+
+def test_interface_curves_one_per_state_and_pair():
+    """Two pairs whose points interleave along x: each pair is its own curve, in x order (one
+    curve through both would zig-zag between them); a table without the pair column is one pair."""
+    x = np.array([0.0, 2.0, 1.0, 3.0, 0.5, 2.5])
+    c = {"step": np.ones(6), "increment": np.ones(6), "x": x, "p": 10 * x, "tau": x,
+         "status": np.array(["stick", "slip", "stick", "slip", "slip", "stick"], dtype=object),
+         "contact": np.array(["A->F", "A->F", "A->F", "B->F", "B->F", "B->F"], dtype=object)}
+    st = [State(1, 1, 1.0, "end")]
+    curves = interface_curves(c, st, "x")
+    assert [(i, j, name) for i, j, name, _ in curves] == [(0, 0, "end, A->F"), (0, 1, "end, B->F")]
+    assert curves[0][3]["s"].tolist() == [0.0, 1.0, 2.0] and curves[1][3]["s"].tolist() == [0.5, 2.5, 3.0]
+    assert curves[0][3]["stick"].tolist() == [True, True, False]
+    assert curves[1][3]["p"].tolist() == [5.0, 25.0, 30.0]
+    del c["contact"]
+    (only,) = interface_curves(c, st, "x")
+    assert only[2] == "end" and only[3]["s"].tolist() == sorted(x)
