@@ -223,6 +223,7 @@ class VtkWriter(Writer):
     def __init__(self, outdir, model, **options):
         super().__init__(outdir, model, **options)
         self.append = bool(options.get("append", False))
+        self.fields: set[str] | None = None       # *OUTPUT, FIELDS= of the step; None: all
 
     def start_run(self) -> None:
         self.outdir.mkdir(parents=True, exist_ok=True)
@@ -270,7 +271,7 @@ class VtkWriter(Writer):
     def _wants(self, name: str) -> bool:
         """``*OUTPUT, FIELDS=`` of the step asks for ``name`` (U, S, PEEQ, RF), or nothing
         was asked (all)."""
-        return getattr(self, "fields", None) is None or name in self.fields
+        return self.fields is None or name in self.fields
 
     def close(self, status: int, message: str) -> None:
         pass

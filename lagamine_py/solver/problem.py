@@ -93,23 +93,26 @@ class Problem:
             raise KeyError("KERNEL=NUMBA needs the optional package numba "
                            "(pip install 'lagamine_py[fast]')")
         self.kernel = kernel
-        # contact groups (their fused numba kernel) by the same rule: loading numba costs more
-        # than it saves on a small model
-        numba = kernel == "NUMBA" or (kernel == "AUTO"
-                                      and self.solid_elements() >= AUTO_NUMBA_ELEMENTS)
+        # contact groups (their fused numba kernel) by the same rule
         for g in self.groups:
             if hasattr(g, "set_kernel"):
-                g.set_kernel(numba)
+                g.set_kernel(self.wants_numba())
 
     def solid_elements(self) -> int:
         """Number of solid elements of the model."""
         return sum(len(self.groups[k].dofs) for k in self.indices(SOLID))
 
+    def wants_numba(self) -> bool:
+        """The kernel setting asks for the numba kernels: ``NUMBA``, or ``AUTO`` on a model of at
+        least :data:`AUTO_NUMBA_ELEMENTS` solid elements (on a smaller one loading numba costs
+        more than it saves)."""
+        if self.kernel == "AUTO":
+            return self.solid_elements() >= AUTO_NUMBA_ELEMENTS
+        return self.kernel == "NUMBA"
+
     def fused(self, k: int) -> bool:
         """Whether group ``k`` is computed by its fused kernel under the current setting."""
-        if self.kernel == "NUMPY" or not hasattr(self.groups[k], "compute_into"):
-            return False
-        if self.kernel == "AUTO" and self.solid_elements() < AUTO_NUMBA_ELEMENTS:
+        if not self.wants_numba() or not hasattr(self.groups[k], "compute_into"):
             return False
         cache = self.__dict__.setdefault("_fused_support", {})
         if k not in cache:

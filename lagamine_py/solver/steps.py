@@ -95,6 +95,7 @@ class Controller:
         self.surfaces = dload_surfaces(model)
         self.foundations = list(model.foundations)
         self.has_contact = CONTACT in problem.kinds
+        self._kernel_text = None          # what the log last said of the solid kernel
 
     # -- the run ---------------------------------------------------------------------------
     def run(self, restart: bool) -> Outcome:
@@ -205,7 +206,7 @@ class Controller:
         fused = sum(self.problem.fused(k) for k in solids)
         text = (f"numba kernel for {fused} of {len(solids)} solid group(s) (KERNEL={setting}; "
                 "compiled on first use, then cached)" if fused else f"NumPy (KERNEL={setting})")
-        if text != getattr(self, "_kernel_text", None):
+        if text != self._kernel_text:
             log.info("solid elements computed by %s", text)
             self._kernel_text = text
 
