@@ -312,15 +312,20 @@ def _make_state(law, p_old, tau_old, lam_old):
     return st
 
 
+def _on_surface(law, p_old, tau_old):
+    """(tau_old, lam_old) with the "on surface" points (|tau| = 4) put exactly on the surface
+    of ``law`` at lam = 0.01."""
+    lam_old = np.full(p_old.size, 0.01)
+    radius = law.adhesion(lam_old)[0] + law.friction(lam_old)[0] * p_old
+    return np.where(np.abs(tau_old) == 4.0, np.sign(tau_old) * radius, tau_old), lam_old
+
+
 @pytest.mark.parametrize("extra", [{}, dict(HPHI=5.0, HB=20.0), dict(HB=-30.0),
                                    dict(HPHI=-3.0, HB=10.0)])
 def test_tangent_matches_central_differences(extra):
     law = Coulomb(**dict(BASE, **extra))
     p_old, tau_old, d, du, dv = _states()
-    # put the "on surface" points exactly on the surface of this law
-    lam_old = np.full(p_old.size, 0.01)
-    radius = law.adhesion(lam_old)[0] + law.friction(lam_old)[0] * p_old
-    tau_old = np.where(np.abs(tau_old) == 4.0, np.sign(tau_old) * radius, tau_old)
+    tau_old, lam_old = _on_surface(law, p_old, tau_old)
     st = _make_state(law, p_old, tau_old, lam_old)
     new, tan = law.update(st, d, du, dv)
     assert list(new["status"]) == [STICK, SLIP, SLIP, SLIP, STICK, OPEN, STICK, SLIP, SLIP]
@@ -392,9 +397,7 @@ def test_frozen_status_is_held_and_its_tangent_is_exact():
     """The solver's flip-flop control: -1 free; OPEN/STICK/SLIP held."""
     law = Coulomb(**dict(BASE, HPHI=5.0, HB=20.0))
     p_old, tau_old, d, du, dv = _states()
-    lam_old = np.full(p_old.size, 0.01)
-    radius = law.adhesion(lam_old)[0] + law.friction(lam_old)[0] * p_old
-    tau_old = np.where(np.abs(tau_old) == 4.0, np.sign(tau_old) * radius, tau_old)
+    tau_old, lam_old = _on_surface(law, p_old, tau_old)
     st = _make_state(law, p_old, tau_old, lam_old)
     free, tan_free = law.update(st, d, du, dv)
     same, tan_same = law.update(st, d, du, dv, frozen=np.full(p_old.size, -1, np.int8))

@@ -101,6 +101,14 @@ def figure(ncols=1, w=7.5, h=5):
     return plt, fig, np.atleast_1d(axes)
 
 
+def finish_axes(axes, xlabel: str, legend_size: int = 7) -> None:
+    """The common x label, a log-log-friendly grid and a legend on every panel."""
+    for ax in axes:
+        ax.set_xlabel(xlabel)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=legend_size)
+
+
 def save(plt, fig, name: str) -> None:
     (DOCS / "images").mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
@@ -151,10 +159,7 @@ def study_theta(work: Path, jobs: int) -> None:
     axes[0].set_title("cup rotation, step TURN (57 degrees): error")
     axes[1].set_ylabel("failed attempts (cut-backs); x below 0: without cut-backs, exit 3")
     axes[1].set_title("... and what it costs: cut-backs, and failures without them")
-    for ax in axes:
-        ax.set_xlabel("rotation per increment asked [degrees]")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+    finish_axes(axes, "rotation per increment asked [degrees]")
     save(plt, fig, "theta")
 
 
@@ -315,10 +320,7 @@ def study_penalty(work: Path, jobs: int) -> None:
     axes[0].set_ylabel("error of T = phi P + B A")
     axes[1].set_ylabel("Newton iterations (all attempts)")
     axes[2].set_ylabel("penetration [mm]")
-    for ax in axes:
-        ax.set_xlabel("penalty / (E / h)")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+    finish_axes(axes, "penalty / (E / h)")
     axes[0].set_title("Coulomb block: KP, KT over six decades")
     save(plt, fig, "penalty")
 
@@ -380,10 +382,7 @@ def study_ro(work: Path, jobs: int) -> None:
                 axes[1].plot(float(r["N"]), r["newton_iterations"], "x", color="k", ms=12, mew=2)
     axes[0].set_ylabel("error against the uniaxial Ramberg-Osgood curve")
     axes[1].set_ylabel("Newton iterations (x: stopped, exit 3)")
-    for ax in axes:
-        ax.set_xlabel("Ramberg-Osgood exponent n")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+    finish_axes(axes, "Ramberg-Osgood exponent n", 8)
     axes[0].set_title("compression of a Ramberg-Osgood cylinder (30 %)")
     axes[1].plot([float(r["N"]) for r in ps], [r["newton_iterations"] for r in ps], "-s",
                  color="C5", label="press-then-slide block (right axis scale: iterations)")
