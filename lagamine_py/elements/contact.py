@@ -484,11 +484,9 @@ class ContactGroup(Group):
                 c(self._AP[:nq, 0, :], float))
             self._face_nodes64 = c(self.face_nodes, np.int64)
         law = self.law
-        if law._lv is None:
-            law._lv = kernels.law_vector(law)
         st, f, K, outside, start, (snap, degenerate, nonfinite) = kernels.contact_group(
             self, static, u_new, u_old, co, cn, nsub, float(getattr(law, "theta", 1.0)), geo,
-            tangent, state, self._frozen(ctx), law._lv, cache)
+            tangent, state, self._frozen(ctx), law.kernel_vector(kernels), cache)
         if start is not None:
             self._start_cache = (geo, self.foundation) + start
         if snap:

@@ -185,6 +185,13 @@ class Coulomb(ContactLaw):
         return _clipped_linear(self.phi, self.hphi, np.asarray(lam, float))
 
     # -- one sub-interval ----------------------------------------------------------------
+    def kernel_vector(self, kernels) -> np.ndarray:
+        """The law's parameters as the numba kernels read them (``kernels.law_vector``), built
+        on first use and kept (the parameters do not change during a run)."""
+        if self._lv is None:
+            self._lv = kernels.law_vector(self)
+        return self._lv
+
     def update(self, state, d, du, dv, frozen=None):
         """Integrate one sub-interval for all points (see :class:`ContactLaw`).
 
@@ -208,9 +215,8 @@ class Coulomb(ContactLaw):
         """
         kernels = _numba_kernels() if self.use_kernel else None
         if kernels is not None and np.ndim(state["p"]) == 1:
-            if self._lv is None:
-                self._lv = kernels.law_vector(self)
-            new, tan, bad = kernels.coulomb_update(self._lv, state, d, du, dv, frozen)
+            new, tan, bad = kernels.coulomb_update(self.kernel_vector(kernels), state, d, du, dv,
+                                                   frozen)
             if bad:
                 raise ReturnMappingError(_SNAP_BACK)
             return new, tan
