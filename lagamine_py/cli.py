@@ -9,7 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
-EXIT_OK, EXIT_OTHER, EXIT_DECK, EXIT_DIVERGED = 0, 1, 2, 3
+from .core.exits import EXIT_DECK, EXIT_OK, EXIT_OTHER
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -26,9 +26,10 @@ def _parser() -> argparse.ArgumentParser:
                      "next to the current directory)")
     run.add_argument("--restart", type=Path, metavar="OUT",
                      help="resume the run whose output directory is OUT from its last converged increment")
-    run.add_argument("--solver", choices=("AUTO", "SPLU", "PARDISO"),
-                     help="sparse linear solver (overrides the deck's *CONTROLS SOLVER)")
-    run.add_argument("--kernel", choices=("AUTO", "NUMPY", "NUMBA"),
+    run.add_argument("--solver", type=str.upper, metavar="NAME",
+                     help="sparse linear solver, any registered one: AUTO, SPLU, PARDISO or a "
+                          "plugin's (overrides the deck's *CONTROLS SOLVER)")
+    run.add_argument("--kernel", type=str.upper, choices=("AUTO", "NUMPY", "NUMBA"),
                      help="solid-element kernel (overrides the deck's *CONTROLS KERNEL): NUMBA "
                           "needs the fast extra (numba); AUTO uses it when installed, from 2000 "
                           "solid elements")
@@ -141,6 +142,14 @@ def _cmd_run(args) -> int:
     if model is None:
         return EXIT_DECK
     if args.solver:
+        from .registry import names
+        known = names("solvers")
+        if args.solver not in known:
+            from .core.params import did_you_mean
+            print(f"lagamine-py run: --solver {args.solver}: not a registered solver"
+                  f"{did_you_mean(args.solver, known)}; installed: {', '.join(known)}",
+                  file=sys.stderr)
+            return EXIT_DECK
         for step in model.steps:
             step.controls["SOLVER"] = args.solver
     if args.kernel:
@@ -159,8 +168,12 @@ def _cmd_plugins(args) -> int:
     for kind in KINDS:
         print(f"{kind}:")
         for entry in REGISTRY.entries(kind):
-            doc = (entry.cls.__doc__ or "").strip().splitlines()
-            print(f"  {entry.name}  ({entry.origin}){'  - ' + doc[0] if doc else ''}")
+            summary = entry.cls.summary()
+            extra = [f"also {', '.join(entry.cls.aliases)}"] if entry.cls.aliases else []
+            if entry.replaces:
+                extra.append(f"replaces the one from {entry.replaces}")
+            note = f" [{'; '.join(extra)}]" if extra else ""
+            print(f"  {entry.name}  ({entry.origin}){note}{'  - ' + summary if summary else ''}")
             for p in entry.cls.params:
                 print(f"      {p.describe()}")
     for msg in broken_plugins():

@@ -53,6 +53,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
+from .core.tensors import left_normal
+
 __all__ = ["Foundation", "Projection"]
 
 
@@ -83,14 +86,6 @@ class Projection:
     dd_de: np.ndarray
 
 
-_PERP = np.array([-1.0, 1.0])     # v[..., ::-1] * _PERP = (-v_y, v_x), the left normal
-
-
-def _perp(v: np.ndarray) -> np.ndarray:
-    """Left normal (rotation by +90 degrees) of vectors (..., 2)."""
-    return np.stack([-v[..., 1], v[..., 0]], axis=-1)
-
-
 class Foundation:
     """Rigid chain of 3-point parabolic arcs.
 
@@ -111,10 +106,10 @@ class Foundation:
             raise ValueError(f"foundation {name!r}: needs an odd number >= 3 of points, got {m}")
         self.points = pts
         self.name = name
-        # project() through the numba kernel (lagamine_py.laws.coulomb_numba) when switched on
-        # and numba imports; off by default (the NumPy path is the reference).  Exact type only.
-        self.kernel_supported = type(self) is Foundation
-        self.use_kernel = False               # switched on by ContactGroup.set_kernel (KERNEL=)
+        # project() through kernels.contact when switched on (use_kernels) and numba imports;
+        # off by default: the NumPy path is the reference
+        self.use_kernel = False
+        self._kernel_arrays = None
         self.s_tol = float(s_tol)
         self.cos_min = float(cos_min)
         X0, X1, X2 = pts[0:-1:2], pts[1::2], pts[2::2]
@@ -128,7 +123,37 @@ class Foundation:
         j = np.arange(self.n_arcs)
         self._cand_arc = np.concatenate([j, j, [0, self.n_arcs - 1]])  # arc of each candidate
 
+    # ------------------------------------------------------------------ kernels
+    def has_kernel(self) -> bool:
+        """Whether :mod:`lagamine_py.kernels.contact` reproduces this foundation (the exact
+        type: a subclass may change anything)."""
+        return type(self) is Foundation
+
+    def use_kernels(self, on: bool) -> None:
+        """Project through the numba kernel (``on``, where :meth:`has_kernel`) or NumPy."""
+        self.use_kernel = bool(on) and self.has_kernel()
+
+    def kernel_arrays(self) -> tuple:
+        """The chain as the kernels read it: ``A, B, C`` (j, 2) contiguous, the start and end
+        half-lines' origins and directions (2,), ``s_tol``, ``cos_min`` (kept)."""
+        if self._kernel_arrays is None:
+            c = np.ascontiguousarray
+            (so, st), (eo, et) = self._start, self._end
+            self._kernel_arrays = (c(self.A, float), c(self.B, float), c(self.C, float),
+                                   c(so, float), c(st, float), c(eo, float), c(et, float),
+                                   self.s_tol, self.cos_min)
+        return self._kernel_arrays
+
     # ------------------------------------------------------------------ geometry
+    def sample(self, per_arc: int = 16, c=None) -> np.ndarray:
+        """Points along the chain, ``per_arc`` intervals per arc (the arcs' own interpolation),
+        translated by ``c``: (per_arc * arcs + 1, 2)."""
+        s = np.linspace(-1.0, 1.0, per_arc + 1)
+        arc = np.repeat(np.arange(self.n_arcs), per_arc)
+        ss = np.tile(s[:-1], self.n_arcs)
+        X, _ = self.evaluate(np.append(arc, self.n_arcs - 1), np.append(ss, 1.0), c)
+        return X
+
     def points_at(self, c=None) -> np.ndarray:
         """Current points (m, 2) for the translation ``c`` (2,)."""
         return self.points + (np.zeros(2) if c is None else np.asarray(c, float))
@@ -175,7 +200,7 @@ class Foundation:
             if tangent_hit.any():
                 r2[...] = np.where(tangent_hit, -b / (2 * a), r2)
             # end half-lines: w . (o + c + (s -/+ 1) t - P) = 0
-            w = _perp(e_u)
+            w = left_normal(e_u)
             for col, ((o, t), sign) in enumerate(((self._start, -1.0), (self._end, 1.0))):
                 wt = w @ t                 # a BLAS product, as before (it may fuse multiply-adds)
                 oc = o + c
@@ -200,11 +225,10 @@ class Foundation:
         P = np.atleast_2d(np.asarray(P, float))
         e_u = np.atleast_2d(np.asarray(e_u, float))
         c = np.zeros(2) if c is None else np.asarray(c, float)
-        if self.use_kernel and P.ndim == 2 and e_u.shape == P.shape:
-            from .laws.coulomb import _numba_kernels
-            kernels = _numba_kernels()
-            if kernels is not None:
-                return Projection(**kernels.project_points(self, P, e_u, c))
+        if self.use_kernel and e_u.shape == P.shape:
+            fast = kernels.module("contact")
+            if fast is not None:
+                return Projection(**fast.project_points(self.kernel_arrays(), P, e_u, c))
         g = P.shape[0]
         s, arc = self._candidates(P, e_u, c)                      # (g, k), (k,)
         # evaluate only the candidates that exist (most lines cross few arcs): h hits
@@ -212,7 +236,7 @@ class Foundation:
         X, dX = self.evaluate(arc[hit_k], s[hit_g, hit_k], c)     # (h, 2)
         # one hit per line (a single arc, or each line crossing one arc): it is the best one
         one = hit_g.size == g and np.array_equal(hit_g, np.arange(g))
-        m = dX[:, ::-1] * _PERP                                   # left normals (not unit)
+        m = left_normal(dX)                                  # left normals (not unit)
         m_norm = np.linalg.norm(m, axis=-1)
         e_h = e_u if one else e_u[hit_g]
         cosn = np.einsum("hi,hi->h", m, e_h) / np.where(m_norm > 0, m_norm, 1.0)
@@ -260,4 +284,4 @@ class Foundation:
             arc_best = np.where(found, arc[best], -1)
             s_best = np.where(found, s_best, np.nan)
         return Projection(Q=Q, d=d, arc=arc_best, s=s_best, tangent=tangent,
-                          normal=tangent[:, ::-1] * _PERP, found=found, dd_dP=dd_dP, dd_de=dd_de)
+                          normal=left_normal(tangent), found=found, dd_dP=dd_dP, dd_de=dd_de)

@@ -23,6 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from . import kernels, registry
+from .core.params import Param
+
 
 @dataclass(frozen=True)
 class Where:
@@ -93,6 +96,7 @@ class Amplitude:
     name: str
     time: np.ndarray
     value: np.ndarray
+    where: Where | None = None
 
     def __call__(self, t):
         return np.interp(t, self.time, self.value)
@@ -148,6 +152,28 @@ class OutputRequest:
     frequency: int = 1
     fields: tuple[str, ...] = ()      # subset of OUTPUT_FIELDS; empty: all of them
     contact: bool = True
+    writers: tuple[str, ...] = ()     # registry names of the writers; empty: the defaults
+
+
+#: the Newton and step-controller settings a step may give with ``*CONTROLS`` (validated by the
+#: deck builder, read by the step controller)
+CONTROL_PARAMS: tuple[Param, ...] = (
+    Param("RTOL", float, 1e-8, (0, 1), doc="relative force residual tolerance |R| / max(|F|, |RF|, floor)"),
+    Param("ETOL", float, 1e-14, (0, 1), doc="relative energy tolerance |du.R| / first-iteration energy"),
+    Param("MAXIT", int, 25, (1, 1000), doc="Newton iterations before the increment is cut back"),
+    Param("CUTBACK", float, 0.25, (0.01, 0.9), doc="factor applied to dt on a cut-back"),
+    Param("GROWTH", float, 1.5, (1.0, 10.0), doc="factor applied to dt after an easy increment"),
+    Param("EASY", int, 5, (1, 1000), doc="an increment converged in at most this many iterations is easy"),
+    Param("LINESEARCH", bool, False, doc="backtracking line search on the energy"),
+    Param("SOLVER", str, "AUTO", choices=lambda: tuple(registry.names("solvers")),
+          doc="sparse linear solver: a registered solver (AUTO, SPLU, PARDISO, or a plugin's)"),
+    Param("KERNEL", str, "AUTO", choices=kernels.SETTINGS,
+          doc="numba kernels (NUMBA, needs the fast extra), NumPy (NUMPY), or numba from "
+              f"{kernels.AUTO_NUMBA_ELEMENTS} solid elements when installed (AUTO)"),
+    Param("EXTRAPOLATION", str, "LINEAR", choices=("LINEAR", "NONE"),
+          doc="first iterate of an increment: the last increment of the step, scaled (LINEAR), or none"),
+    Param("FLIPFLOP", int, 4, (1, 100), doc="contact status switches or slip reversals of a point before it is frozen"),
+)
 
 
 @dataclass
@@ -194,15 +220,6 @@ class Model:
     @property
     def ndof(self) -> int:
         return 2 * len(self.node_ids)
-
-    def node_row(self, node_id: int) -> int:
-        return int(self._row_of[node_id])
-
-    def __post_init__(self):
-        self._row_of = {int(n): r for r, n in enumerate(self.node_ids)}
-
-    def reindex(self) -> None:
-        self._row_of = {int(n): r for r, n in enumerate(self.node_ids)}
 
     def element_lookup(self) -> dict[int, tuple[int, int]]:
         """deck element id -> (block index, row in block)."""

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .elements import outline_of_cell
 from .results import RunResults, read_table, read_vtu
 
 __all__ = ["State", "chosen_states", "parse_states", "plot_interface", "plot_forces", "plot_mesh",
@@ -269,16 +270,15 @@ def plot_forces(res: RunResults, outdir: Path, step_names: dict[int, str] | None
 
 
 # -- mesh --------------------------------------------------------------------------------------
-def _outline(nen: int) -> list[int]:
-    """Local node order tracing the element boundary (Q8: corner, mid, corner, ...)."""
-    return [0, 4, 1, 5, 2, 6, 3, 7] if nen == 8 else list(range(nen))
-
-
-def _cells(grid) -> list[np.ndarray]:
+def _outlines(grid) -> list[np.ndarray]:
+    """The boundary of every cell of ``grid``: its nodes in order around it (the element class
+    of its VTK cell type says how, :func:`lagamine_py.elements.outline_of_cell`)."""
     from vtkmodules.util.numpy_support import vtk_to_numpy
     conn = vtk_to_numpy(grid.GetCells().GetConnectivityArray())
     offs = vtk_to_numpy(grid.GetCells().GetOffsetsArray())
-    return [conn[offs[k]:offs[k + 1]] for k in range(len(offs) - 1)]
+    types = np.array([grid.GetCellType(k) for k in range(grid.GetNumberOfCells())])
+    order = {t: list(outline_of_cell(int(t))) for t in np.unique(types)}
+    return [conn[offs[k]:offs[k + 1]][order[types[k]]] for k in range(len(offs) - 1)]
 
 
 @dataclass
@@ -303,7 +303,7 @@ def _frame(state: State, body: Path, foundation: Path | None, swap: bool) -> _Fr
     U = vtk_to_numpy(disp)[:, :2] if disp is not None else np.zeros_like(X)
     axes = [1, 0] if swap else [0, 1]
     x, X = (X + U)[:, axes], X[:, axes]
-    cells = [c[_outline(len(c))] for c in _cells(grid)]
+    cells = _outlines(grid)
     arr = grid.GetCellData().GetArray("PEEQ")
     peeq = vtk_to_numpy(arr).astype(float) if arr is not None else np.zeros(len(cells))
     fnd = read_vtu(foundation)["points"][:, :2][:, axes] if foundation is not None else None

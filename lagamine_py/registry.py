@@ -1,239 +1,175 @@
-"""One registry for every plugin kind: elements, material laws, contact laws, writers, solvers.
+"""One registry for every plugin kind, keyed by the name a deck uses.
 
-A plugin is a class with a class attribute ``params``: a tuple of :class:`Param` declaring
-the deck parameters it accepts.  Built-ins and third-party packages register the same way:
-through the ``setup.cfg`` entry-point groups ``lagamine_py.<kind>`` (``elements``, ``laws``,
-``contact_laws``, ``writers``, ``solvers``), or with the :func:`register` decorator.  When the
-package runs from a source tree without being installed, the built-in modules are imported
-directly so that the decorators fill the registry.
+Kinds, their entry-point groups and the base class that holds each kind's whole contract:
+
+==============  ==============================  ===============================================
+kind            entry-point group               base class (contract)
+==============  ==============================  ===============================================
+elements        ``lagamine_py.elements``        :class:`lagamine_py.elements.base.Element`
+laws            ``lagamine_py.laws``            :class:`lagamine_py.laws.base.MaterialLaw`
+contact_laws    ``lagamine_py.contact_laws``    :class:`lagamine_py.laws.base.ContactLaw`
+writers         ``lagamine_py.writers``         :class:`lagamine_py.output.base.Writer`
+solvers         ``lagamine_py.solvers``         :class:`lagamine_py.solver.linear.LinearSolver`
+checks          ``lagamine_py.checks``          :class:`lagamine_py.checks.base.Check`
+==============  ==============================  ===============================================
+
+The built-ins register exactly as a third-party package does: through entry points in
+``setup.cfg`` (the package must be installed, ``pip install -e .`` for a source tree), or with
+the :func:`register` decorator.  A plugin is checked when it registers (a subclass of its kind's
+base class, declaring ``params``) and the registry remembers which distribution supplied it.
+
+Names: a third-party plugin may *replace* a built-in of the same name (say a VTK writer of your
+own); ``lagamine-py plugins`` says so.  Two third-party plugins with one name clash: the first
+found is kept and the clash is reported (:func:`broken_plugins`), as is a plugin that fails to
+load; neither stops the program.
 """
 from __future__ import annotations
 
-import difflib
 import importlib
-import math
 from dataclasses import dataclass, field
 from importlib import metadata
-from typing import Any
 
-KINDS = ("elements", "laws", "contact_laws", "writers", "solvers")
+from .core.params import Param, ParamError, did_you_mean, validate_params  # noqa: F401 (re-exported)
 
-# Modules holding built-in plugins; imported when entry points are not installed.
-_BUILTIN_MODULES = {
-    "elements": ("lagamine_py.elements.solid",),
-    "laws": ("lagamine_py.laws.elastic", "lagamine_py.laws.j2", "lagamine_py.laws.ramberg_osgood"),
-    "contact_laws": ("lagamine_py.laws.coulomb",),
-    "writers": ("lagamine_py.output.vtk", "lagamine_py.output.tables", "lagamine_py.output.status",
-                "lagamine_py.output.nodal"),
-    "solvers": ("lagamine_py.solver.linear",),
+__all__ = ["KINDS", "BASES", "Registry", "Entry", "REGISTRY", "register", "get", "names", "canonical",
+           "broken_plugins", "Param", "ParamError", "validate_params", "did_you_mean"]
+
+#: plugin kind -> the base class holding its contract ("module:Class", imported when needed:
+#: the registry sits below every plugin layer)
+BASES = {
+    "elements": "lagamine_py.elements.base:Element",
+    "laws": "lagamine_py.laws.base:MaterialLaw",
+    "contact_laws": "lagamine_py.laws.base:ContactLaw",
+    "writers": "lagamine_py.output.base:Writer",
+    "solvers": "lagamine_py.solver.linear:LinearSolver",
+    "checks": "lagamine_py.checks.base:Check",
 }
+KINDS = tuple(BASES)
+BUILTIN = "lagamine_py"        # the distribution name of the built-ins
 
 
-class _Required:
-    def __repr__(self) -> str:
-        return "REQUIRED"
-
-
-REQUIRED = _Required()
-
-
-class ParamError(ValueError):
-    """A deck value does not fit a plugin's declared parameters (message names the parameter)."""
-
-
-@dataclass(frozen=True)
-class Param:
-    """A declared plugin parameter.
-
-    ``type`` is ``float``, ``int``, ``str`` or ``bool``; ``bounds`` is an inclusive
-    ``(low, high)`` pair (``None`` for unbounded); ``choices`` restricts strings (and also
-    lets a numeric parameter accept a keyword such as ``AUTO``).
-    """
-
-    name: str
-    type: type = float
-    default: Any = REQUIRED
-    bounds: tuple = (None, None)
-    unit: str = ""
-    doc: str = ""
-    choices: tuple = ()
-
-    @property
-    def required(self) -> bool:
-        return self.default is REQUIRED
-
-    def convert(self, raw: Any) -> Any:
-        """Convert a deck token (str) or a Python value, checking type, bounds and choices."""
-        if isinstance(raw, str):
-            text = raw.strip()
-            if self.choices and text.upper() in self.choices:
-                return text.upper()
-            if self.type is str:
-                if self.choices:
-                    raise ParamError(f"{self.name} must be one of {', '.join(self.choices)}, got {text!r}")
-                return text
-            if self.type is bool:
-                up = text.upper()
-                if up in ("YES", "TRUE", "1", "ON"):
-                    return True
-                if up in ("NO", "FALSE", "0", "OFF"):
-                    return False
-                raise ParamError(f"{self.name} expects YES or NO, got {text!r}")
-            try:
-                value = float(text.replace("d", "e").replace("D", "E"))
-            except ValueError:
-                expected = "an integer" if self.type is int else "a number"
-                extra = f" or one of {', '.join(self.choices)}" if self.choices else ""
-                raise ParamError(f"{self.name} expects {expected}{extra}, got {text!r}") from None
-        else:
-            value = raw
-            if self.type is str or self.type is bool:
-                return value
-        if not math.isfinite(float(value)):
-            raise ParamError(f"{self.name} must be finite, got {value!r}")
-        if self.type is int:
-            if float(value) != int(value):
-                raise ParamError(f"{self.name} expects an integer, got {value!r}")
-            value = int(value)
-        else:
-            value = float(value)
-        low, high = self.bounds
-        if low is not None and value < low:
-            raise ParamError(f"{self.name} = {value:g} is below its lower bound {low:g}")
-        if high is not None and value > high:
-            raise ParamError(f"{self.name} = {value:g} is above its upper bound {high:g}")
-        return value
-
-    def describe(self) -> str:
-        default = "required" if self.required else f"default {self.default}"
-        lo, hi = self.bounds
-        rng = ""
-        if lo is not None or hi is not None:
-            rng = f", in [{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}]"
-        unit = f" [{self.unit}]" if self.unit else ""
-        choices = f", or {'/'.join(self.choices)}" if self.choices else ""
-        return f"{self.name} ({self.type.__name__}{unit}, {default}{rng}{choices}): {self.doc}"
-
-
-def did_you_mean(word: str, candidates) -> str:
-    """' (did you mean X?)' for the closest candidate, or ''."""
-    close = difflib.get_close_matches(word.upper(), [c.upper() for c in candidates], n=1, cutoff=0.5)
-    return f" (did you mean {close[0]}?)" if close else ""
-
-
-def validate_params(cls, given: dict[str, Any]) -> dict[str, Any]:
-    """Check ``given`` (names case-insensitive) against ``cls.params``; return converted values.
-
-    Raises ParamError listing unknown names (with a did-you-mean), missing required ones and
-    bad values, all in one message.
-    """
-    declared = {p.name.upper(): p for p in getattr(cls, "params", ())}
-    errors, out = [], {}
-    for key, raw in given.items():
-        p = declared.get(key.upper())
-        if p is None:
-            errors.append(f"unknown parameter {key.upper()}{did_you_mean(key, declared)}; "
-                          f"expected one of {', '.join(declared) or '(none)'}")
-            continue
-        try:
-            out[p.name] = p.convert(raw)
-        except ParamError as exc:
-            errors.append(str(exc))
-    for name, p in declared.items():
-        if p.name not in out and not any(k.upper() == name for k in given):
-            if p.required:
-                errors.append(f"missing required parameter {p.name}")
-            else:
-                out[p.name] = p.default
-    if errors:
-        raise ParamError("; ".join(errors))
-    return out
+def base_class(kind: str) -> type:
+    """The base class of plugin kind ``kind``."""
+    module, _, name = BASES[kind].partition(":")
+    return getattr(importlib.import_module(module), name)
 
 
 @dataclass
 class Entry:
     name: str
     cls: type
-    origin: str
+    origin: str                  # "<distribution> <version>" or the module
+    replaces: str = ""           # origin of the built-in it replaces, if any
+    alias_of: str = ""           # the plugin's own name, when this entry is one of its aliases
+
+    @property
+    def builtin(self) -> bool:
+        return self.origin.split()[0].replace("-", "_").lower() == BUILTIN
 
 
 @dataclass
 class Registry:
     tables: dict[str, dict[str, Entry]] = field(default_factory=lambda: {k: {} for k in KINDS})
+    problems: list[str] = field(default_factory=list)
     _loaded: bool = False
 
     def add(self, kind: str, name: str, cls: type, origin: str = "") -> None:
+        """Register ``cls`` as plugin ``name`` of ``kind``; raises TypeError or ValueError on a
+        bad plugin or a clash between two non-built-in plugins."""
         if kind not in self.tables:
             raise ValueError(f"unknown plugin kind {kind!r}; kinds are {', '.join(KINDS)}")
         _check_plugin(kind, name, cls)
-        key = name.upper()
+        origin = origin or cls.__module__
+        self._put(kind, Entry(name.upper(), cls, origin))
+        for alias in cls.aliases:
+            self._put(kind, Entry(alias.upper(), cls, origin, alias_of=name.upper()))
+
+    def _put(self, kind: str, entry: Entry) -> None:
+        key, cls, origin = entry.name, entry.cls, entry.origin
         old = self.tables[kind].get(key)
-        if old is not None and old.cls is not cls:
-            raise ValueError(f"{kind} plugin {key} from {origin or cls.__module__} clashes with "
-                             f"the one from {old.origin}")
-        if old is None:
-            self.tables[kind][key] = Entry(key, cls, origin or cls.__module__)
+        if old is None or old.cls is cls:
+            self.tables[kind].setdefault(key, entry)
+        elif old.builtin and not entry.builtin:
+            entry.replaces = old.origin
+            self.tables[kind][key] = entry
+        elif entry.builtin and not old.builtin:
+            old.replaces = origin
+        else:
+            raise ValueError(f"{kind} plugin {key} from {origin} clashes with the one from "
+                             f"{old.origin}")
 
     def load(self) -> None:
-        """Import entry points (once), then built-in modules not found through them."""
+        """Import the plugins of every entry-point group (once)."""
         if self._loaded:
             return
         self._loaded = True
         for kind in KINDS:
             for ep in metadata.entry_points(group=f"lagamine_py.{kind}"):
-                try:
-                    cls = ep.load()
-                except Exception as exc:  # a broken third-party plugin must not stop the program
-                    _broken.append(f"{kind} plugin {ep.name} ({ep.value}) failed to load: {exc}")
-                    continue
                 dist = getattr(ep, "dist", None)
                 origin = f"{dist.name} {dist.version}" if dist is not None else ep.value
-                self.add(kind, ep.name, cls, origin)
-        for kind, modules in _BUILTIN_MODULES.items():
-            for mod in modules:
                 try:
-                    importlib.import_module(mod)
-                except ModuleNotFoundError as exc:
-                    if exc.name != mod:
-                        raise
+                    self.add(kind, ep.name, ep.load(), origin)
+                except Exception as exc:  # a broken third-party plugin must not stop the program
+                    self.problems.append(f"{kind} plugin {ep.name} ({ep.value}, {origin}) "
+                                         f"is not usable: {exc}")
 
     def get(self, kind: str, name: str) -> type:
+        """The class registered as ``name`` (case-insensitive); KeyError with a did-you-mean."""
         self.load()
-        entry = self.tables[kind].get(name.upper())
+        entry = self.tables[kind].get(str(name).upper())
         if entry is None:
-            names = sorted(self.tables[kind])
-            raise KeyError(f"unknown {kind[:-1].replace('_', ' ')} {name.upper()}"
-                           f"{did_you_mean(name, names)}; installed: {', '.join(names) or '(none)'}")
+            known = sorted(self.tables[kind])
+            raise KeyError(f"unknown {_singular(kind)} {str(name).upper()}"
+                           f"{did_you_mean(name, known)}; installed: {', '.join(known) or '(none)'}")
         return entry.cls
 
     def names(self, kind: str) -> list[str]:
+        """Every name a deck may use, aliases included."""
         self.load()
         return sorted(self.tables[kind])
 
+    def canonical(self, kind: str, name: str) -> str:
+        """The plugin's own name for ``name`` (an alias resolved); KeyError as :meth:`get`."""
+        self.get(kind, name)
+        entry = self.tables[kind][str(name).upper()]
+        return entry.alias_of or entry.name
+
     def entries(self, kind: str) -> list[Entry]:
+        """The plugins of ``kind``, one entry each (aliases left out), by name."""
         self.load()
-        return [self.tables[kind][n] for n in sorted(self.tables[kind])]
+        return [e for n, e in sorted(self.tables[kind].items()) if not e.alias_of]
 
 
-_broken: list[str] = []
+def _singular(kind: str) -> str:
+    return {"laws": "material law", "contact_laws": "contact law"}.get(kind, kind[:-1])
+
+
 REGISTRY = Registry()
 
 
 def _check_plugin(kind: str, name: str, cls: type) -> None:
-    """Validate a plugin when it registers, so a mistake shows up at once and by name."""
+    """Validate a plugin when it registers, so that a mistake shows at once and by name."""
+    where = f"{kind} plugin {name} ({getattr(cls, '__module__', '?')}." \
+            f"{getattr(cls, '__qualname__', repr(cls))})"
     if not isinstance(cls, type):
         raise TypeError(f"{kind} plugin {name} must be a class, got {cls!r}")
-    params = getattr(cls, "params", None)
-    if params is None or not all(isinstance(p, Param) for p in params):
-        raise TypeError(f"{kind} plugin {name} ({cls.__module__}.{cls.__qualname__}) must declare "
-                        f"`params` as a tuple of lagamine_py.registry.Param")
+    base = base_class(kind)
+    if not issubclass(cls, base):
+        raise TypeError(f"{where} must derive from {base.__module__}.{base.__qualname__}")
+    params = cls.params
+    if not isinstance(params, tuple) or not all(isinstance(p, Param) for p in params):
+        raise TypeError(f"{where} must declare `params` as a tuple of lagamine_py.Param")
+    problem = cls.contract_problem()
+    if problem:
+        raise TypeError(f"{where}: {problem}")
 
 
 def register(kind: str, name: str):
-    """Class decorator: ``@register("laws", "ELASTIC")``."""
+    """Class decorator registering a plugin: ``@register("laws", "ELASTIC")``.  Packages
+    should rather declare an entry point (the registry then knows the distribution)."""
     def deco(cls):
-        REGISTRY.add(kind, name, cls, f"lagamine_py ({cls.__module__})"
-                     if cls.__module__.startswith("lagamine_py") else cls.__module__)
+        module = cls.__module__
+        REGISTRY.add(kind, name, cls, BUILTIN if module.startswith("lagamine_py.") else module)
         return cls
     return deco
 
@@ -242,6 +178,15 @@ def get(kind: str, name: str) -> type:
     return REGISTRY.get(kind, name)
 
 
+def names(kind: str) -> list[str]:
+    return REGISTRY.names(kind)
+
+
+def canonical(kind: str, name: str) -> str:
+    return REGISTRY.canonical(kind, name)
+
+
 def broken_plugins() -> list[str]:
+    """Plugins that could not be registered (failed to load, bad contract, name clash)."""
     REGISTRY.load()
-    return list(_broken)
+    return list(REGISTRY.problems)

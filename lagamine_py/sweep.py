@@ -50,13 +50,13 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from .checks import check_columns, evaluate_checks
+from .core.exits import EXIT_DECK, EXIT_OK, EXIT_OTHER
 from .results import read_table
 
 __all__ = ["sweep_main", "run_sweep", "parse_sets", "grid", "point_dirname", "run_point",
            "point_task", "run_stats", "load_point_checks", "SweepError", "PointDeckError",
            "POINT_FILE", "SWEEP_FILE"]
 
-EXIT_OK, EXIT_OTHER, EXIT_DECK = 0, 1, 2
 POINT_FILE = "point.json"
 SWEEP_FILE = "sweep.csv"
 FIXED_COLUMNS = ("status", "reason", "wall_s", "cpu_s", "newton_iterations", "increments",
@@ -239,7 +239,7 @@ def load_point_checks(deck: Path, params: dict[str, str]) -> list[dict[str, Any]
         model = load_deck(Path(deck), parameters=dict(params))
     except DeckError as exc:
         raise PointDeckError(_one_line(str(exc))) from exc
-    return list(getattr(model, "checks", []))
+    return list(model.checks)
 
 
 # ---------------------------------------------------------------- sweep.csv

@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from lagamine_py.checks import CHECKS, check_columns, evaluate_checks, register_check
+from lagamine_py import registry
+from lagamine_py.checks import Check, check_columns, evaluate_checks
 
 # the Hertz deck (decks/hertz.dat): its comment states a = 1.0000 mm, p0 = 10989 MPa
 P, R, E, NU = 17261.5, 10.0, 200000.0, 0.3
@@ -319,25 +320,27 @@ def test_limit_pressure(tmp_path):
 
 def test_missing_files_and_unknown_types_are_reported_not_raised(tmp_path):
     res = evaluate_checks([hertz_check(), {"name": "X", "type": "NOPE", "params": {}},
-                           {"name": "C", "type": "COULOMB", "params": {"PHI": 0.3}}], tmp_path)
+                           {"name": "C", "type": "COULOMB", "params": {"B": 0.3}}], tmp_path)
     assert all(math.isnan(r["error"]) for r in res)
     assert "contact.csv" in res[0]["message"]
     assert "NOPE" in res[1]["message"] and "HERTZ" in res[1]["message"]
-    assert "parameter B is missing" in res[2]["message"]
+    assert "missing required parameter PHI" in res[2]["message"]
 
 
 def test_check_columns_and_registering_a_type(tmp_path):
-    @register_check("CONSTANT_T")
-    def constant(params, run):
-        T = float(run.table("contact_totals.csv")["T"][-1])
-        return {"measured": {"T": T}, "closed_form": {"T": 10.0}, "errors": {"T": abs(T - 10) / 10},
-                "error": abs(T - 10) / 10}
+    @registry.register("checks", "CONSTANT_T")
+    class ConstantT(Check):
+        """T against a constant."""
+        def evaluate(self, run):
+            T = float(run.table("contact_totals.csv")["T"][-1])
+            return {"measured": {"T": T}, "closed_form": {"T": 10.0}, "errors": {"T": abs(T - 10) / 10},
+                    "error": abs(T - 10) / 10}
     try:
         write_totals(tmp_path, 1.0, 12.0)
         res = evaluate_checks([{"name": "K", "type": "constant_t", "params": {}}], tmp_path)
         assert check_columns(res) == {"K_error": pytest.approx(0.2), "K_T": 12.0, "K_T_cf": 10.0}
     finally:
-        CHECKS.pop("CONSTANT_T")
+        registry.REGISTRY.tables["checks"].pop("CONSTANT_T")
 
 
 def test_contact_points_of_the_named_pair_only(tmp_path):

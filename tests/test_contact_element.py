@@ -9,9 +9,10 @@ import pytest
 
 from lagamine_py.elements.base import StepContext
 from lagamine_py.elements.contact import ContactGroup
-from lagamine_py.elements.shapes import Q4_FACES, Q8_FACES
+from lagamine_py.elements.quad import Quad4, Quad8
 from lagamine_py.foundation import Foundation
-from lagamine_py.laws.base import OPEN, SLIP, STICK, ContactLaw
+from lagamine_py.core.status import OPEN, SLIP, STICK
+from lagamine_py.laws.base import ContactLaw
 
 
 class StandInCoulomb(ContactLaw):
@@ -180,7 +181,7 @@ def test_tangent_substeps_chain_state_dependences(form, hphi, nfn):
 def test_outward_normal_for_counter_clockwise_faces():
     """e_u = (y_xi, -x_xi)/|J| points out of the element on every face of CCW Q8 and Q4."""
     q8 = np.array([[0, 0], [2, 0], [2, 1], [0, 1], [1, 0], [2, .5], [1, 1], [0, .5]], float)
-    for coords, faces in ((q8, Q8_FACES), (q8[:4], Q4_FACES)):
+    for coords, faces in ((q8, Quad8.faces), (q8[:4], Quad4.faces)):
         fn = np.array(faces)
         grp = ContactGroup("c", fn, [1] * 4, [1, 2, 3, 4], coords, FOUND, "F", StandInCoulomb(), gauss=2)
         P, t = grp._at_points(grp._face_x(np.zeros_like(coords)))

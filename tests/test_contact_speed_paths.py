@@ -1,8 +1,8 @@
 """The fast paths of the contact computation against their references.
 
-* The numba kernels (``lagamine_py.laws.coulomb_numba``, optional ``fast`` extra) of the COULOMB
-  update, of the foundation projection and of the whole contact group (fused) against the NumPy
-  code (``use_kernel = False``), the reference: every state field and tangent entry, every
+* The numba kernels (``lagamine_py.kernels.contact``, optional ``fast`` extra) of the foundation
+  projection and of the whole contact group (fused) with the COULOMB law against the NumPy
+  code, the reference: every state field and tangent entry, every
   projection field, and the contact group's forces, tangent, state and failure messages, over
   batches that visit every branch (open, touching, re-contact, partial re-contact, separation,
   stick, slip, reversal, softening kinks, the flip-flop holds, the CLASSICAL indicator, end
@@ -18,7 +18,8 @@ import pytest
 from lagamine_py.elements.base import StepContext
 from lagamine_py.elements.contact import ContactGroup
 from lagamine_py.foundation import Foundation
-from lagamine_py.laws.base import OPEN, SLIP, STICK, ReturnMappingError
+from lagamine_py.core.errors import ReturnMappingError
+from lagamine_py.core.status import OPEN, SLIP, STICK
 from lagamine_py.laws.coulomb import Coulomb
 
 PARAMS = {
@@ -39,7 +40,9 @@ FOUNDATIONS = {
 
 
 def _kernels():
-    return pytest.importorskip("lagamine_py.laws.coulomb_numba")
+    pytest.importorskip("numba")
+    from lagamine_py import kernels
+    return kernels.module("contact")
 
 
 def _batch(par, rng, g=3000, simple=False):
@@ -77,69 +80,11 @@ def _close(a, b, rtol=1e-12, what=""):
     np.testing.assert_allclose(a[ok], b[ok], rtol=0, atol=rtol * scale, err_msg=what)
 
 
-@pytest.mark.parametrize("name", sorted(PARAMS))
-@pytest.mark.parametrize("hold", [False, True])
-@pytest.mark.parametrize("simple", [False, True])
-def test_coulomb_kernel_equals_numpy(name, hold, simple):
-    _kernels()
-    par = PARAMS[name]
-    rng = np.random.default_rng([sorted(PARAMS).index(name), hold, simple])
-    st, d, du, dv = _batch(par, rng, simple=simple)
-    frozen = rng.integers(-1, 3, d.size) if hold else None
-    fast, ref = Coulomb(**par), Coulomb(**par)
-    ref.use_kernel = False
-    new_f, tan_f = fast.update(st, d, du, dv, frozen=frozen)
-    new_r, tan_r = ref.update(st, d, du, dv, frozen=frozen)
-    assert set(new_f) == set(new_r) and set(tan_f) == set(tan_r)
-    for key in new_r:
-        _close(new_f[key], new_r[key], what=f"state {key}")
-    for key in tan_r:
-        _close(tan_f[key], tan_r[key], what=f"tangent {key}")
-    # the batch did visit the branches
-    status = new_r["status"]
-    assert {OPEN, STICK, SLIP} <= set(np.unique(status).tolist())
-    assert (new_r["lam"] > st["lam"]).sum() > 100
-
-
-def test_coulomb_kernel_scalar_increments_and_extra_state():
-    """Broadcast d/du/dv and state entries the law does not own pass through, as in NumPy."""
-    _kernels()
-    fast, ref = Coulomb(**PARAMS["plain"]), Coulomb(**PARAMS["plain"])
-    ref.use_kernel = False
-    st = fast.init_state(5)
-    st["p"][:] = 3.0
-    st["status"][:] = STICK
-    st["extra"] = np.arange(5.0)
-    a, ta = fast.update(st, 0.004, 0.001, 0.01)
-    b, tb = ref.update(st, 0.004, 0.001, 0.01)
-    for key in b:
-        _close(a[key], b[key], what=key)
-    for key in tb:
-        _close(ta[key], tb[key], what=key)
-    assert a["extra"] is st["extra"]
-
-
-def test_coulomb_kernel_reports_snap_back_like_numpy():
-    """phi softening with a large pressure: KT + H <= 0 on the slipping piece, both paths raise."""
-    _kernels()
-    par = dict(KP=1000.0, KT=500.0, PHI=0.5, B=0.0, HPHI=-2.0)
-    st = Coulomb(**par).init_state(2)
-    st["p"][:] = 400.0
-    st["tau"][:] = 200.0
-    st["status"][:] = SLIP
-    for use in (True, False):
-        law = Coulomb(**par)
-        law.use_kernel = use
-        with pytest.raises(ReturnMappingError, match="snap-back"):
-            law.update(st, np.full(2, 0.4), np.zeros(2), np.full(2, 0.01))
-
-
 def test_coulomb_subclass_takes_numpy_path():
     class Mine(Coulomb):
         pass
-    assert not Mine(**PARAMS["plain"]).use_kernel and not Mine(**PARAMS["plain"]).kernel_supported
-    assert Coulomb(**PARAMS["plain"]).kernel_supported
-    assert not Coulomb(**PARAMS["plain"]).use_kernel        # off until KERNEL= switches it on
+    assert Mine(**PARAMS["plain"]).kernel_vector() is None
+    assert Coulomb(**PARAMS["plain"]).kernel_vector() is not None
 
 
 @pytest.mark.parametrize("name", sorted(PARAMS))
@@ -147,7 +92,6 @@ def test_simple_tangent_equals_general_tangent(name):
     """No re-contact, no separation: the shortcut gives the general formulas' values."""
     par = PARAMS[name]
     law = Coulomb(**par)
-    law.use_kernel = False
     rng = np.random.default_rng(3)
     st, d, du, dv = _batch(par, rng, simple=True)
     seen = {}
@@ -197,10 +141,10 @@ def _group(rng, ax, nfn, gauss, law, found_pts, use_kernel):
         coords0 = np.array([[-0.4, 0.05], [0.4, 0.02], [1.2, 0.0]])
         faces = np.array([[0, 1], [1, 2]])
     found = Foundation(np.asarray(found_pts) + shift)
-    found.use_kernel = use_kernel
-    law.use_kernel = use_kernel
-    return ContactGroup("S->F", faces, [11, 12], [1, 1], coords0 + shift, found, "F", law,
-                        gauss=gauss, axisymmetric=ax, thickness=2.5)
+    grp = ContactGroup("S->F", faces, [11, 12], [1, 1], coords0 + shift, found, "F", law,
+                       gauss=gauss, axisymmetric=ax, thickness=2.5)
+    grp.use_kernels(use_kernel)
+    return grp
 
 
 @pytest.mark.parametrize("nfn,gauss,ax,nlgeom,substeps,theta,case,hold", [
@@ -246,7 +190,8 @@ def test_problem_kernel_setting_reaches_contact_groups():
     from pathlib import Path
 
     from lagamine_py.deck import load_deck
-    from lagamine_py.solver.problem import AUTO_NUMBA_ELEMENTS, build_problem
+    from lagamine_py.kernels import AUTO_NUMBA_ELEMENTS
+    from lagamine_py.solver.problem import build_problem
     _kernels()
     deck = Path(__file__).resolve().parents[1] / "decks" / "press_slide.dat"
     problem = build_problem(load_deck(deck))
@@ -254,8 +199,7 @@ def test_problem_kernel_setting_reaches_contact_groups():
     assert contact and problem.solid_elements() < AUTO_NUMBA_ELEMENTS
 
     def on():
-        flags = {(g.law.use_kernel, g.foundation.use_kernel, g._kernels() is not None)
-                 for g in contact}
+        flags = {(g._kernel, g.foundation.use_kernel) for g in contact}
         assert len(flags) == 1 and len(set(next(iter(flags)))) == 1
         return next(iter(flags))[0]
     problem.set_kernel("NUMBA")
@@ -278,7 +222,7 @@ def test_contact_group_kernel_reports_the_same_failures(indicator, frozen):
     for use in (True, False):
         law = Coulomb(KP=1e3, KT=5e2, PHI=0.3, B=0.5, HB=-20.0, INDICATOR=indicator)
         grp, u_old, u_new, state, ctx = _setup(3, 3, False, 1.0, 1, "slip", law=law)
-        grp.set_kernel(use)
+        grp.use_kernels(use)
         state["tau"] = -(law.b + law.phi * state["p"])
         if frozen is not None:
             ctx.freeze_contact = {grp.name: np.full(grp.ng, frozen)}

@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from lagamine_py.laws.base import OPEN, SLIP, STICK, ReturnMappingError
+from lagamine_py.core.errors import ReturnMappingError
+from lagamine_py.core.status import OPEN, SLIP, STICK
 from lagamine_py.laws.contact_point import drive
 from lagamine_py.laws.coulomb import Coulomb
 from lagamine_py.registry import REGISTRY, ParamError

@@ -98,7 +98,7 @@ CASES = [
     ("unknown element type", edit("TYPE=Q4PE", "TYPE=Q4PF"), "*ELEMENT, TYPE=Q4PF, ELSET=E", "ELEMENT",
      ["unknown element Q4PF", "did you mean Q4PE?"]),
     ("unknown law", edit("LAW=ELASTIC", "LAW=ELASTC"), "*MATERIAL, NAME=M, LAW=ELASTC", "MATERIAL",
-     ["unknown law ELASTC", "did you mean ELASTIC?"]),
+     ["unknown material law ELASTC", "did you mean ELASTIC?"]),
     ("unknown law parameter", edit("E=100, NU=0.3", "E=100, NUU=0.3"), "E=100, NUU=0.3", "MATERIAL",
      ["unknown parameter NUU", "did you mean NU?"]),
     ("inverted element", edit("1, 1, 2, 3, 4", "1, 1, 4, 3, 2"), "1, 1, 4, 3, 2", "ELEMENT",

@@ -9,7 +9,7 @@ import pytest
 
 from lagamine_py.deck import DeckError, KEYWORDS, load_deck, parse_deck, reference_markdown
 from lagamine_py.deck.grammar import GRAMMAR
-from lagamine_py.elements.shapes import Q8_FACES
+from lagamine_py.elements.quad import Quad8
 
 
 def write(tmp_path, text, name="deck.dat"):
@@ -267,7 +267,7 @@ def test_mesh_geometry_sets_and_surfaces(full):
         lookup = m.element_lookup()
         for eid, face in zip(surf.elements, surf.faces):
             blk, k = lookup[int(eid)]
-            face_nodes = m.blocks[blk].conn[k][list(Q8_FACES[face - 1])]
+            face_nodes = m.blocks[blk].conn[k][list(Quad8.faces[face - 1])]
             np.testing.assert_allclose(m.coords[face_nodes, axis], value)
         # every element touching the side has its face there once
         touching = {int(e) for e, nodes in zip(m.blocks[1].ids, conn) if np.sum(np.isin(nodes, on_side)) == 3}

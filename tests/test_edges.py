@@ -11,7 +11,7 @@ import pytest
 
 from lagamine_py.elements.base import StepContext
 from lagamine_py.elements.edges import PressureGroup, face_nodes, surface_faces
-from lagamine_py.elements.solid import Q4PlaneStrain, Q8PlaneStrain
+from lagamine_py.elements.quad import Q4PlaneStrain, Q8PlaneStrain
 from lagamine_py.model import ElementBlock, Model, Surface
 
 

@@ -39,7 +39,7 @@ def tangents():
     u[0::2] = 1e-3 * xy[:, 0] / 40.0
     u[1::2] = -2e-3 * xy[:, 1] / 20.0 - 1e-4
     problem.set_pressures({name: 200.0 for name in problem.pressure_groups})
-    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, load_factor=1.0,
+    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0,
                       foundation_old={"FLAT": np.zeros(2)}, foundation_new={"FLAT": np.zeros(2)})
     states = problem.init_states()
     ev = problem.evaluate(u, np.zeros(2 * n), states, ctx, True)
@@ -210,7 +210,7 @@ def test_openblas_pinned_to_one_thread():
     import os
     if "OPENBLAS_NUM_THREADS" in os.environ or "OMP_NUM_THREADS" in os.environ:
         pytest.skip("the user chose the OpenBLAS threads")
-    from lagamine_py._threads import pin_threads
+    from lagamine_py.core.threads import pin_threads
     pin_threads()
     info = threadpoolctl.threadpool_info()
     openblas = [i for i in info if i["internal_api"] == "openblas"]

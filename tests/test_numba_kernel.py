@@ -19,10 +19,12 @@ pytest.importorskip("numba")     # the fast extra; CI installs it with the test 
 
 from lagamine_py.deck import load_deck                          # noqa: E402
 from lagamine_py.elements.base import StepContext               # noqa: E402
-from lagamine_py.laws.j2 import J2Linear, von_mises             # noqa: E402
+from lagamine_py.core.tensors import von_mises
+from lagamine_py.laws.j2 import J2Linear             # noqa: E402
 from lagamine_py.output import default_writers                  # noqa: E402
 from lagamine_py.registry import get                            # noqa: E402
 from lagamine_py.results import read_table                      # noqa: E402
+from lagamine_py import kernels                                 # noqa: E402
 from lagamine_py.solver import problem as problem_mod           # noqa: E402
 from lagamine_py.solver import run                              # noqa: E402
 from lagamine_py.solver.pattern import Pattern                  # noqa: E402
@@ -105,7 +107,7 @@ def assert_close(a, b, what):
 @pytest.mark.parametrize("etype", ELEMENTS)
 def test_kernel_equals_numpy(etype, law_name, nlgeom):
     group, state, u_new, u_old = setup(etype, law_name)
-    assert group.kernel_supported()
+    assert group.law.kernel_parameters() is not None
     (r0, f0, d0), (r1, f1, d1) = both(group, state, u_new, u_old, nlgeom)
     assert r0.failure is None and r1.failure is None
     if law_name != "ELASTIC":                  # the return map is exercised, not only elasticity
@@ -141,7 +143,7 @@ def test_ramberg_osgood_both_branches_of_the_return_map():
     law = group.law
     r = group.compute(u_new, u_old, state, StepContext(nlgeom=False), False)
     plastic = r.state["peeq"] > state["peeq"]
-    rho = von_mises(r.state["stress"]) / (3 * law.G * law.p["N"] * r.state["peeq"])
+    rho = von_mises(r.state["stress"]) / (3 * law.G * law.values["N"] * r.state["peeq"])
     assert (rho[plastic] > 1).any() and (rho[plastic] <= 1).any()
 
 
@@ -192,14 +194,14 @@ def test_unsupported_law_falls_back_to_numpy():
     problem = problem_mod.build_problem(model)
     problem.set_kernel("NUMBA")
     k = problem.kinds.index("solid")
-    assert problem.fused(k)
-    assert not problem.fused(problem.kinds.index("contact"))   # no kernel for contact groups
+    assert problem.groups[k].fused
+    assert not problem.groups[problem.kinds.index("contact")].fused   # no kernel for contact groups
     problem = problem_mod.build_problem(model)
     g = problem.groups[k]
-    g.law = PluginJ2(**{key.upper(): v for key, v in g.law.p.items()
+    g.law = PluginJ2(**{key.upper(): v for key, v in g.law.values.items()
                         if key in ("E", "NU")}, SIGMAY=1e9)
     problem.set_kernel("NUMBA")
-    assert not g.kernel_supported() and not problem.fused(k)
+    assert g.law.kernel_parameters() is None and not problem.groups[k].fused
     ev = problem.evaluate(np.zeros(problem.ndof), np.zeros(problem.ndof),
                           problem.init_states(), context(problem), True)
     assert ev.results[k].K is not None                         # computed by compute()
@@ -240,21 +242,22 @@ def test_auto_uses_the_kernel_from_a_model_size(monkeypatch):
     problem = problem_mod.build_problem(load_deck(DECKS / "compression_ro.dat"))
     k = problem.kinds.index("solid")
     n = problem.solid_elements()
-    assert n == len(problem.groups[k].dofs) and n < problem_mod.AUTO_NUMBA_ELEMENTS
-    assert problem.kernel == "AUTO" and not problem.fused(k)
-    monkeypatch.setattr(problem_mod, "AUTO_NUMBA_ELEMENTS", n)
-    assert problem.fused(k)
+    assert n == len(problem.groups[k].dofs) and n < kernels.AUTO_NUMBA_ELEMENTS
+    assert problem.kernel == "AUTO" and not problem.groups[k].fused
+    monkeypatch.setattr(kernels, "AUTO_NUMBA_ELEMENTS", n)
+    problem.set_kernel("AUTO")
+    assert problem.groups[k].fused
 
 
 def test_set_kernel_validates(monkeypatch):
     problem = problem_mod.build_problem(load_deck(DECKS / "compression_ro.dat"))
     with pytest.raises(KeyError):
         problem.set_kernel("FORTRAN")
-    monkeypatch.setattr(problem_mod, "_NUMBA", False)        # as without numba installed
+    monkeypatch.setattr(kernels, "available", lambda: False)        # as without numba installed
     with pytest.raises(KeyError, match="numba"):
         problem.set_kernel("NUMBA")
     problem.set_kernel("AUTO")
-    assert not problem.fused(0)                               # AUTO falls back to NumPy
+    assert not problem.groups[0].fused                               # AUTO falls back to NumPy
 
 
 COMPANIONS = {"RF1": ("RF1", "RF2"), "RF2": ("RF1", "RF2"), "u1": ("u1", "u2"),
@@ -301,7 +304,7 @@ def test_newton_quadratic_with_the_kernel(tmp_path):
     problem = problem_mod.build_problem(model)
     outcome = run(model, tmp_path, writers=[cap], problem=problem)
     assert outcome.status == 0
-    assert problem.kernel == "NUMBA" and problem.fused(problem.kinds.index("solid"))
+    assert problem.kernel == "NUMBA" and problem.groups[problem.kinds.index("solid")].fused
     orders = [o for o in (is_quadratic(r.residual_history) for r in cap.results) if o is not None]
     assert orders and min(orders) > 1.8, orders
 

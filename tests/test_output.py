@@ -18,10 +18,12 @@ import numpy as np
 import pytest
 from scipy.integrate import dblquad
 
-from lagamine_py.elements.shapes import gauss_quad, quad_shape
+from lagamine_py.elements.quad import gauss_quad, quad_shape
 from lagamine_py.model import Model, OutputRequest, Step
-from lagamine_py.output import ContactPoints, IncrementResult, default_writers
-from lagamine_py.output.vtk import sample_arcs
+from lagamine_py.output import ContactPoints, FailedAttempt, IncrementResult, default_writers
+from lagamine_py.elements.base import CellBlock
+from lagamine_py.elements.quad import Q4PlaneStrain, Q8PlaneStrain
+from lagamine_py.foundation import Foundation
 from lagamine_py.results import read_vtu
 
 import vtk  # noqa: E402  (a hard dependency)
@@ -68,10 +70,10 @@ def make_result(model, q8, q4, step=1, inc=1, time=0.5, write_fields=True, conta
     rng = np.random.default_rng(seed)
     n = len(model.coords)
     xg8, xg4 = gauss_points(model.coords, q8, 3), gauss_points(model.coords, q4, 2)
-    cells = [dict(type="Q8PE", ids=np.array([1, 2]), conn=q8, nen=8, stress=stress_field(xg8), peeq=peeq_field(xg8)),
-             dict(type="Q4PE", ids=np.array([11, 12]), conn=q4, nen=4,
-                  stress=np.broadcast_to([SIGMA, 0.0, 0.0, TAU], xg4.shape[:2] + (4,)).copy(),
-                  peeq=peeq_field(xg4))]
+    cells = [CellBlock(Q8PlaneStrain, np.array([1, 2]), q8, stress_field(xg8), peeq_field(xg8)),
+             CellBlock(Q4PlaneStrain, np.array([11, 12]), q4,
+                       np.broadcast_to([SIGMA, 0.0, 0.0, TAU], xg4.shape[:2] + (4,)).copy(),
+                       peeq_field(xg4))]
     cps, fnd = [], {}
     if contacts:
         cps = [ContactPoints(name="BOT->TOOL", element=np.array([1, 1, 2]), face=np.array([1, 1, 1]),
@@ -186,7 +188,7 @@ def test_sample_arcs_follows_each_arc():
     # two arcs, 4 intervals each: the given points are hit at parameters -1, 0, +1 of each arc,
     # and a quarter-parameter sample is the quadratic's value there: (3 P0 + 6 P1 - P2) / 8
     pts = np.array([[0, 0], [1, 1], [2, 0], [3, -2], [4, 0]], float)
-    s = sample_arcs(pts, 4)
+    s = Foundation(pts).sample(4)
     assert len(s) == 9
     assert np.array_equal(s[[0, 2, 4, 6, 8]], pts)
     assert np.allclose(s[5], (3 * pts[2] + 6 * pts[3] - pts[4]) / 8)
@@ -240,7 +242,7 @@ def test_status_and_log(run):
     out, _, results, writers = run
     logging.getLogger("lagamine_py.solver").info("newton says hello")
     status = next(w for w in writers if type(w).__name__ == "StatusWriter")
-    status.failed_attempt(dict(step=1, step_name="LOAD", increment=4, time=1.0, step_time=1.0, dt=0.5,
+    status.failed_attempt(FailedAttempt(step=1, step_name="LOAD", increment=4, time=1.0, step_time=1.0, dt=0.5,
                                iterations=2, residual_history=[1.0, 2.0, 3.0], cutbacks=1,
                                reason="too many iterations, residual 3", message="diverging: residual grew"))
     header, rows = read_csv(out / "deck.sta")
@@ -291,8 +293,7 @@ def test_writer_modules_do_not_import_vtk():
                           check=True).stdout.strip() == "False"
 
 
-@pytest.mark.parametrize("how", ["restarting", "append"])
-def test_resume_appends_and_drops_what_came_after_the_restart_point(tmp_path, how):
+def test_resume_appends_and_drops_what_came_after_the_restart_point(tmp_path):
     model, q8, q4 = build_mesh()
 
     def drive(writers, incs, seed0):
@@ -310,11 +311,9 @@ def test_resume_appends_and_drops_what_came_after_the_restart_point(tmp_path, ho
         return results
 
     first = drive(default_writers(tmp_path, model), [1, 2, 3], 0)
-    # the restart data held increment 2: increment 3 is computed again, with other numbers
-    # as the step controller does (``restarting`` set before start_run), or the append option
-    resumed = default_writers(tmp_path, model, append=how == "append")
-    for w in resumed:
-        w.restarting = how == "restarting"
+    # the restart data held increment 2: increment 3 is computed again, with other numbers,
+    # by writers built with append=True as the step controller builds them on a restart
+    resumed = default_writers(tmp_path, model, append=True)
     again = drive(resumed, [3, 4, 5], 100)
     _, rows = read_csv(tmp_path / "reactions.csv")
     assert [int(r[1]) for r in rows] == [1, 1, 2, 2, 3, 3, 4, 4, 5, 5]

@@ -25,7 +25,7 @@ def _run(tmp_path, mode):
     outcome, cap, _ = run_deck(deck, out)
     assert outcome.status == 0, outcome.message
     totals = read_table(out / "contact_totals.csv")
-    solves = sum(r.iterations for r in cap.results) + sum(f["iterations"] for f in cap.failures)
+    solves = sum(r.iterations for r in cap.results) + sum(f.iterations for f in cap.failures)
     return solves, float(totals["P"][-1]), float(totals["T"][-1])
 
 

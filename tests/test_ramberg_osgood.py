@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from lagamine_py.laws.j2 import J2Linear, von_mises
+from lagamine_py.core.tensors import von_mises
+from lagamine_py.laws.j2 import J2Linear
 from lagamine_py.laws.material_point import plane_strain_uniaxial, uniaxial_stress
 from lagamine_py.laws.ramberg_osgood import RambergOsgood
 from lagamine_py.registry import REGISTRY, ParamError
@@ -43,7 +44,7 @@ def test_registered_and_parameters_checked():
         RambergOsgood(E=E, NU=NU, SIGMA0=0.0, ALPHA=ALPHA, N=5)
     with pytest.raises(ParamError, match="NU = 0.5 is above"):
         J2Linear(E=E, NU=0.5, SIGMAY=100.0)
-    assert J2Linear(E=E, NU=NU, SIGMAY=100.0).p["H"] == 0.0
+    assert J2Linear(E=E, NU=NU, SIGMAY=100.0).values["H"] == 0.0
 
 
 # --------------------------------------------------------------------- uniaxial closed form

@@ -1,10 +1,16 @@
 """The plugin registry: declared parameters, validation messages, discovery of built-ins."""
 import pytest
 
+from lagamine_py.laws.base import MaterialLaw
 from lagamine_py.registry import REGISTRY, Param, ParamError, Registry, validate_params
 
 
-class _Law:
+class _Law(MaterialLaw):
+    """A law only for its parameters."""
+
+    def update(self, eps_e_trial, state):
+        raise NotImplementedError
+
     params = (
         Param("E", float, bounds=(0.0, None), doc="Young's modulus"),
         Param("NU", float, 0.3, bounds=(-0.999, 0.4999)),
@@ -24,8 +30,8 @@ def test_validate_converts_and_fills_defaults():
     ({}, "missing required parameter E"),
     ({"E": "-1"}, "E = -1 is below its lower bound 0"),
     ({"E": "1", "NU": "0.6"}, "NU = 0.6 is above its upper bound 0.4999"),
-    ({"E": "x"}, "E expects a number, got 'x'"),
-    ({"E": "1", "SUBSTEPS": "2.5"}, "SUBSTEPS expects an integer"),
+    ({"E": "x"}, "E must be a number, got 'x'"),
+    ({"E": "1", "SUBSTEPS": "2.5"}, "SUBSTEPS must be an integer"),
     ({"E": "1", "MODE": "C"}, "MODE must be one of A, B"),
     ({"E": "nan"}, "E must be finite"),
 ])
@@ -38,16 +44,45 @@ def test_validate_reports_each_problem_by_name(given, fragment):
 def test_registry_refuses_undeclared_parameters_and_name_clashes():
     reg = Registry()
 
-    class NoParams:
-        pass
+    class NotALaw:
+        params = ()
 
+    class NoParams(_Law):
+        params = [Param("E")]                        # a list, not a tuple of Param
+
+    class NoUpdate(MaterialLaw):
+        """No update()."""
+
+    with pytest.raises(TypeError, match="must derive from lagamine_py.laws.base.MaterialLaw"):
+        reg.add("laws", "X", NotALaw)
     with pytest.raises(TypeError, match="must declare"):
         reg.add("laws", "X", NoParams)
+    with pytest.raises(TypeError, match="does not implement update"):
+        reg.add("laws", "X", NoUpdate)
     reg.add("laws", "X", _Law, "first")
     reg.add("laws", "x", _Law, "first")            # same class again: idempotent
-    other = type("Other", (), {"params": ()})
+    other = type("Other", (_Law,), {})
     with pytest.raises(ValueError, match="clashes"):
         reg.add("laws", "X", other, "second")
+
+
+def test_a_third_party_plugin_replaces_a_builtin_of_its_name_and_says_so():
+    reg = Registry()
+    builtin = type("Builtin", (_Law,), {})
+    mine = type("Mine", (_Law,), {})
+    reg.add("laws", "X", builtin, "lagamine_py 0.1.0")
+    reg.add("laws", "X", mine, "my-package 1.0")
+    assert reg.get("laws", "X") is mine
+    assert reg.tables["laws"]["X"].replaces == "lagamine_py 0.1.0"
+    reg.add("laws", "Y", mine, "my-package 1.0")       # in the other order too
+    reg.add("laws", "Y", builtin, "lagamine_py 0.1.0")
+    assert reg.get("laws", "Y") is mine
+
+
+def test_aliases_resolve_to_the_plugin():
+    assert REGISTRY.canonical("elements", "cpe8") == "Q8PE"
+    assert REGISTRY.get("elements", "CAX8R") is REGISTRY.get("elements", "Q8AXR")
+    assert "CPE8" not in [e.name for e in REGISTRY.entries("elements")]
 
 
 def test_builtins_are_registered_under_their_deck_names():

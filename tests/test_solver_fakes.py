@@ -10,7 +10,7 @@
 """
 import numpy as np
 
-from lagamine_py.elements.base import GroupResult, StepContext
+from lagamine_py.elements.base import Group, GroupResult, StepContext
 from lagamine_py.model import Model
 from lagamine_py.output.base import Writer
 from lagamine_py.solver.pattern import Pattern
@@ -19,7 +19,7 @@ from lagamine_py.solver.problem import Problem
 GROUND = -1
 
 
-class _TwoDof:
+class _TwoDof(Group):
     """Elongation of springs between DOFs ``pairs[:, 0]`` and ``pairs[:, 1]`` (ground: -1)."""
 
     def __init__(self, pairs, k):
@@ -88,7 +88,7 @@ class PlasticSprings(_TwoDof):
         return GroupResult(fb, K if tangent else None, new)
 
 
-class Failing:
+class Failing(Group):
     """Delegates to ``inner`` but reports ``failure`` when ``when(ctx, u_new)`` returns a text."""
 
     def __init__(self, inner, when):
@@ -107,8 +107,6 @@ class Failing:
 
 
 class Recorder(Writer):
-    params = ()
-
     def __init__(self, outdir=None, model=None, stop_at=None):
         super().__init__(outdir or ".", model)
         self.results, self.failed, self.steps, self.closed = [], [], [], None

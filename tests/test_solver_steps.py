@@ -6,7 +6,7 @@ u = F / k; a DOF imposed to v has a reaction k v.
 import numpy as np
 import pytest
 
-from lagamine_py.elements.base import GroupResult
+from lagamine_py.elements.base import Group, GroupResult
 from lagamine_py.model import (Amplitude, Boundary, CLoad, DLoad, FoundationMotion,
                                FoundationSpec, OutputRequest, Step)
 from lagamine_py.solver import run
@@ -71,8 +71,8 @@ def test_cutback_on_group_failure_keeps_committed_state(tmp_path):
     model = make_model(1, [step(boundaries=[bc(0, 1, 1, 0.4)])])
     out, rec = solve(tmp_path, model, [failing, Springs([[GROUND, 1]], 1.0)])
     assert out.status == 0
-    assert rec.failed and all(f["dt"] > 0.3 for f in rec.failed)
-    assert all(f["reason"] == "element failure" and "too large" in f["message"] for f in rec.failed)
+    assert rec.failed and all(f.dt > 0.3 for f in rec.failed)
+    assert all(f.reason == "element failure" and "too large" in f.message for f in rec.failed)
     assert all(r.dt <= 0.3 + 1e-12 for r in rec.results)
     assert sum(r.cutbacks for r in rec.results) == len(rec.failed)
     assert rec.results[-1].step_time == pytest.approx(1.0)
@@ -87,7 +87,7 @@ def test_cutback_on_iteration_limit(tmp_path):
     groups = [Springs([[GROUND, 0]], k, a=a), Springs([[GROUND, 1]], 1.0)]
     out, rec = solve(tmp_path, model, groups)
     assert out.status == 0
-    assert any(f["reason"] == "iteration limit" for f in rec.failed)
+    assert any(f.reason == "iteration limit" for f in rec.failed)
     roots = np.roots([k * a, 0, k, -F])
     d = roots[np.abs(roots.imag) < 1e-12].real[0]
     assert rec.results[-1].u[0, 0] == pytest.approx(d, rel=1e-10)
@@ -104,7 +104,7 @@ def test_clean_stop_with_status_3(tmp_path):
     assert out.status == 3
     assert "PRESS" in out.message and "step time 0.5 " in out.message
     assert "below the minimum" in out.message and "negative Jacobian" in out.message
-    assert [f["dt"] for f in rec.failed] == pytest.approx([0.25, 0.0625, 0.015625])
+    assert [f.dt for f in rec.failed] == pytest.approx([0.25, 0.0625, 0.015625])
     assert [r.step_time for r in rec.results] == pytest.approx([0.25, 0.5])
     assert rec.closed == (3, out.message)
 
@@ -182,7 +182,7 @@ def test_amplitudes(tmp_path):
         assert r.u[0, 1] == pytest.approx(2.0 * a, rel=1e-12, abs=1e-15)
 
 
-class FakePressure:
+class FakePressure(Group):
     """A 'pressure' acting on the x DOF of node 0: f = -pressure (external load)."""
 
     def __init__(self):

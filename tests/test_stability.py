@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lagamine_py.laws.base import STICK
+from lagamine_py.core.status import STICK
 from lagamine_py.laws.contact_point import drive
 from lagamine_py.laws.coulomb import Coulomb
 
@@ -35,7 +35,7 @@ def test_outside_cone_flags_exactly_the_inadmissible_points(indicator):
     """The law's own test agrees with the cone computed here; only CLASSICAL leaves it."""
     law = Coulomb(**SOFT, INDICATOR=indicator)
     res = drive(law, *_path())
-    flags = np.array([law.outside_cone({k: res[k][i] for k in ("tau", "p", "lam")})[()]
+    flags = np.array([law.inadmissible({k: res[k][i] for k in ("tau", "p", "lam")})[()]
                       for i in range(len(res["tau"]))])
     np.testing.assert_array_equal(flags, _excess(res) > 1e-6)
     assert flags.any() == (indicator == "CLASSICAL")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lagamine_py.elements.base import StepContext
-from lagamine_py.laws.base import SLIP
+from lagamine_py.core.status import SLIP
 from lagamine_py.laws.coulomb import Coulomb
 from lagamine_py.registry import ParamError
 
@@ -116,7 +116,7 @@ def test_rigid_turn_in_a_cup_slips_the_chord_lengths(nsub):
     N = 2, far more than d0 = 1e-3: the penetration must not be projected from it."""
     from lagamine_py.elements.contact import ContactGroup
     from lagamine_py.foundation import Foundation
-    from lagamine_py.laws.base import SLIP
+    from lagamine_py.core.status import SLIP
 
     R, d0, dalpha = 20.0, 1e-3, 0.1
     ang = np.radians(np.arange(-170.0, -9.0, 5.0))

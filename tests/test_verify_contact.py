@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 from runner import DECKS, is_quadratic, run_deck
 
-from lagamine_py.checks import evaluate_checks, hertz_closed_form
+from lagamine_py.checks import evaluate_checks
+from lagamine_py.checks.closed_forms import hertz_closed_form
 from lagamine_py.deck import load_deck
 
 ROUNDOFF = 1e-11        # relative residual floor of the tail test (final residuals: 2e-12..7e-12)
@@ -184,7 +185,7 @@ def test_cattaneo_mindlin_stick_zone(tmp_path):
     a = hertz_closed_form(chk["measured"]["P"], 10.0, 200000.0, 0.49)[0]
     assert chk["closed_form"]["c"] == pytest.approx(a * math.sqrt(0.5), rel=1e-12)
     assert abs(chk["measured"]["c"] - a * math.sqrt(0.5)) < 0.05 * a, chk
-    assert not [f for f in cap.failures if f["step"] == 2], cap.failures
+    assert not [f for f in cap.failures if f.step == 2], cap.failures
     assert len(shear) <= 12
     assert_newton_tail(cap)
     assert_law_consistent(cap, 0.3)
@@ -225,13 +226,11 @@ def test_contact_state_that_cannot_settle_is_cut_back_never_accepted(tmp_path, c
     caplog.set_level(logging.INFO, logger="lagamine_py.solver")
     outcome, cap, _ = run_deck(DECKS / "stick_slip.dat", tmp_path / "out",
                                {"PUSH": 0.005, "FLIPFLOP": 1})
-    unsettled = [f for f in cap.failures if f["reason"] == "contact status did not settle"]
-    assert unsettled, [f["reason"] for f in cap.failures]
+    unsettled = [f for f in cap.failures if f.reason == "contact status did not settle"]
+    assert unsettled, [f.reason for f in cap.failures]
     for f in unsettled:           # each is followed by an attempt of the same increment, smaller
-        later = [g for g in cap.failures + [{"step": r.step, "increment": r.increment,
-                                             "dt": r.dt} for r in cap.results]
-                 if g["step"] == f["step"] and g["increment"] == f["increment"]
-                 and g["dt"] < f["dt"]]
+        later = [g for g in cap.failures + cap.results
+                 if g.step == f.step and g.increment == f.increment and g.dt < f.dt]
         assert later or outcome.status == 3
     assert_law_consistent(cap, 0.3)
     assert all(r.residual <= 1e-8 for r in cap.results)

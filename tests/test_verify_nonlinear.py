@@ -64,8 +64,8 @@ def test_thick_tube_converges_below_the_limit_pressure(tmp_path):
     c = brentq(lambda c: k * (1 - c**2 / 400 + 2 * np.log(c / 10)) - 196.09, 10, 20)
     last = cap.results[-1]
     cell = last.cells[0]
-    xg = (last.coords0 + last.u)[cell["conn"]].mean(axis=1)[:, 0]     # element centre radius
-    plastic = (cell["peeq"] > 0).any(axis=1)
+    xg = (last.coords0 + last.u)[cell.conn].mean(axis=1)[:, 0]     # element centre radius
+    plastic = (cell.peeq > 0).any(axis=1)
     h = 10 / 16
     assert plastic[xg < c - h].all() and not plastic[xg > c + h].any(), (c, xg[plastic].max())
 

@@ -47,7 +47,7 @@ DOCS = ROOT / "docs"
 TARGETS = (0.05, 0.01, 0.002)
 sys.path.insert(0, str(ROOT))
 
-from lagamine_py.checks import fit_hertz, hertz_closed_form  # noqa: E402
+from lagamine_py.checks.closed_forms import fit_hertz, hertz_closed_form  # noqa: E402
 from lagamine_py.results import read_table  # noqa: E402
 from lagamine_py.sweep import (PointDeckError, finished_row, load_point_checks,  # noqa: E402
                                point_dirname, point_task, run_point)

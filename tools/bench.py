@@ -255,7 +255,7 @@ def bench_assembly(nx: int = 160, ny: int = 80, repeat: int = 7) -> dict:
     from lagamine_py.elements.base import StepContext
     from lagamine_py.registry import get
     from lagamine_py.solver.pattern import Pattern
-    from lagamine_py.solver.problem import numba_available
+    from lagamine_py.kernels import available as numba_available
 
     xy, conn = structured_q8(nx, ny)
     law = get("laws", "RAMBERG_OSGOOD")(E=E_STEEL, NU=0.3, SIGMA0=250.0, ALPHA=0.5, N=10.0)
@@ -268,7 +268,7 @@ def bench_assembly(nx: int = 160, ny: int = 80, repeat: int = 7) -> dict:
     ne, nq = len(conn), group.nq
     out = {"elements": ne, "dofs": 2 * len(xy), "numba": numba_available()}
     for nlgeom in (False, True):
-        ctx = StepContext(nlgeom=nlgeom, t_old=0.0, t_new=1.0, load_factor=1.0,
+        ctx = StepContext(nlgeom=nlgeom, t_old=0.0, t_new=1.0,
                           foundation_old={}, foundation_new={})
         res = group.compute(u, u_old, state, ctx, True)
         plastic = float((res.state["peeq"] > 0).mean())
@@ -366,7 +366,7 @@ def _contact_case(repeat: int, nx: int, ny: int, kernel: bool) -> dict:
     bottom = model.coords[:, 1] < 1e-9
     u[bottom, 1] = -1e-4                       # pressed
     u[bottom, 0] = 1e-3                        # and slid
-    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, load_factor=1.0,
+    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0,
                       foundation_old={"FLAT": np.zeros(2)}, foundation_new={"FLAT": np.zeros(2)})
     res = g.compute(u, u_old, states[k], ctx, True)         # warm-up (numba: compile / load)
     ngp = int(np.size(res.state.get("status", np.zeros(0))))
@@ -424,7 +424,7 @@ def bench_solvers(sizes, repeat: int = 5) -> list[dict]:
         u[2 * bottom] = 1e-3
         problem.set_pressures({"PRESSED": 200.0})
         still = {"FLAT": np.zeros(2)}
-        ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, load_factor=1.0,
+        ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0,
                           foundation_old=still, foundation_new=still)
         ev = problem.evaluate(u, np.zeros(2 * n), problem.init_states(), ctx, True)
         right = np.flatnonzero(model.coords[:, 0] > 40 - 1e-9)

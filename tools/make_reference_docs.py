@@ -12,7 +12,7 @@ from pathlib import Path
 
 from lagamine_py.deck import reference_markdown
 from lagamine_py.registry import KINDS, REGISTRY
-from lagamine_py.solver.controls import CONTROL_PARAMS
+from lagamine_py.model import CONTROL_PARAMS
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 

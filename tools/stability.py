@@ -239,7 +239,7 @@ def indicator_single_point() -> list[dict]:
     for ind in ("PREDICTOR", "CLASSICAL"):
         law = Coulomb(**par, INDICATOR=ind)
         res = drive(law, u, v)
-        outside = [bool(law.outside_cone({k: res[k][i] for k in ("tau", "p", "lam")}))
+        outside = [bool(law.inadmissible({k: res[k][i] for k in ("tau", "p", "lam")}))
                    for i in range(len(u))]
         b, _ = law.adhesion(res["lam"])
         phi, _ = law.friction(res["lam"])

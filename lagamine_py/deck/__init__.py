@@ -10,13 +10,13 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..model import Model
-from .builder import ALIASES, build_model
-from .errors import DeckError, Problem, Problems
+from .builder import build_model
+from .errors import DeckError, DeckProblem, Problems
 from .grammar import Block, DataRow, parse_deck_blocks
 from .keywords import KEYWORDS, reference_markdown
 
-__all__ = ["load_deck", "parse_deck", "DeckError", "Problem", "Block", "DataRow", "KEYWORDS",
-           "ALIASES", "reference_markdown"]
+__all__ = ["load_deck", "parse_deck", "DeckError", "DeckProblem", "Block", "DataRow", "KEYWORDS",
+           "reference_markdown"]
 
 
 def parse_deck(path, parameters: dict[str, str] | None = None) -> list[Block]:

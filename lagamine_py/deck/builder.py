@@ -11,24 +11,18 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+
 import numpy as np
 
 from .. import registry
-from ..elements.shapes import gauss_quad, quad_shape
-from ..model import (Amplitude, Boundary, CLoad, ContactLawSpec, ContactSpec, DLoad, ElementBlock,
-                     FoundationMotion, FoundationSpec, MaterialSpec, Model, OUTPUT_FIELDS, OutputRequest,
-                     Step, Surface, Where)
-from ..registry import ParamError, did_you_mean, validate_params
-from ..solver.controls import CONTROL_PARAMS
+from ..core.params import ParamError, did_you_mean, validate_params
+from ..elements.structured import SIDES, rectangle
+from ..model import (CONTROL_PARAMS, OUTPUT_FIELDS, Amplitude, Boundary, CLoad, ContactLawSpec,
+                     ContactSpec, DLoad, ElementBlock, FoundationMotion, FoundationSpec,
+                     MaterialSpec, Model, OutputRequest, Step, Surface, Where)
 from .errors import Problems
 from .grammar import Block, Num
 from .keywords import KEYWORDS, check_data, check_params, data_spec
-
-ALIASES = {"CPE8": "Q8PE", "CAX8": "Q8AX", "CPE4": "Q4PE", "CAX4": "Q4AX",
-           "CPE8R": "Q8PER", "CAX8R": "Q8AXR"}
-
-# Natural coordinates of the Q4/Q8 nodes (corners, then mid-sides 5..8).
-_NODE_XI = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1], [0, -1], [1, 0], [0, 1], [-1, 0]], float)
 
 
 # Keywords whose readable data lines are used even when other lines of the block failed
@@ -44,19 +38,6 @@ class _Controls:
 def _few(ids, n=8) -> str:
     ids = [str(int(i)) for i in ids]
     return ", ".join(ids[:n]) + (f" and {len(ids) - n} more" if len(ids) > n else "")
-
-
-def min_det_jacobian(xy: np.ndarray) -> np.ndarray:
-    """Smallest det J over the 3x3 Gauss points and the nodes of Q4/Q8 elements.
-
-    ``xy`` (e, a, 2) node coordinates; returns (e,).
-    """
-    nen = xy.shape[1]
-    pts = np.vstack([gauss_quad(3)[0], _NODE_XI[:nen]])
-    _, dN = quad_shape(nen, pts)                               # (q, a, 2)
-    J = np.einsum("eai,qaj->eqij", xy, dN)
-    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
-    return det.min(axis=1)
 
 
 @dataclass
@@ -150,22 +131,18 @@ class _Builder:
         old = table.get(name)
         if old is None:
             return False
-        at = getattr(old, "where", None)
+        at = old.where
         self.pb.at(blk, f"{kind} {name} is already defined" + (f" at {at.file}:{at.line}" if at else ""))
         return True
 
     def _element_class(self, blk: Block, name: str):
-        canonical = ALIASES.get(name, name)
         try:
-            cls = registry.get("elements", canonical)
+            canonical = registry.canonical("elements", name)
         except KeyError as exc:
             self.pb.at(blk, f"TYPE={name}: {exc.args[0]}")
             return None, None, 0
-        nen = getattr(cls, "nen", None)
-        if not isinstance(nen, int) or nen < 2:
-            self.pb.at(blk, f"element type {canonical} does not declare its number of nodes (nen)")
-            return None, None, 0
-        return canonical, cls, nen
+        cls = registry.get("elements", canonical)
+        return canonical, cls, cls.nen
 
     def _amplitude(self, blk: Block, name) -> bool:
         if name is None or name in self.m.amplitudes:
@@ -349,57 +326,43 @@ class _Builder:
             self._add_elset(params["ELSET"], added)
 
     def _kw_mesh(self, blk, params, data):
-        """Structured rectangle.  Nodes are numbered on from the largest id, row by row from the
-        bottom-left corner, left to right (Q8: every grid point but the element centres);
-        elements likewise, from the largest element id.  Sides: nsets and surfaces NAME_BOTTOM
-        (faces S1), NAME_RIGHT (S2), NAME_TOP (S3), NAME_LEFT (S4)."""
+        """Structured rectangle (:func:`lagamine_py.elements.structured.rectangle`).  Nodes are
+        numbered on from the largest id, row by row from the bottom-left corner, left to right;
+        elements likewise, from the largest element id.  Sides: nsets and surfaces NAME_BOTTOM,
+        NAME_RIGHT, NAME_TOP, NAME_LEFT."""
         name = params["NAME"]
         grp = self._new_group(blk, params["TYPE"])
         if grp is None:
             return
-        if grp.nen not in (4, 8):
-            self.pb.at(blk, f"*MESH makes 4- or 8-node quadrilaterals; {grp.type} has {grp.nen} nodes")
+        if not grp.cls.cell_elements:
+            self.pb.at(blk, f"*MESH cannot fill a rectangle with {grp.type} elements (the element "
+                            f"type declares no cell_elements)")
             return
         nx, ny = params["NX"], params["NY"]
-        if (2 * nx + 1) * (2 * ny + 1) > 5_000_000:
+        if (grp.cls.grid_order * nx + 1) * (grp.cls.grid_order * ny + 1) > 5_000_000:
             self.pb.at(blk, f"NX={nx}, NY={ny} makes too many nodes")
             return
-        m = 2 if grp.nen == 8 else 1
-        ni, nj = m * nx + 1, m * ny + 1
-        ii, jj = np.meshgrid(np.arange(ni), np.arange(nj))        # (nj, ni): row by row from the bottom
-        keep = ~((m == 2) & (ii % 2 == 1) & (jj % 2 == 1))         # serendipity: no centre node
+        mesh = rectangle(grp.cls, params["X0"], params["Y0"], params["LX"], params["LY"], nx, ny)
         first = max(self.node_ids, default=0) + 1
-        grid = np.zeros((nj, ni), int)
-        grid[keep] = first + np.arange(keep.sum())
-        x = params["X0"] + params["LX"] * ii[keep] / (ni - 1)
-        y = params["Y0"] + params["LY"] * jj[keep] / (nj - 1)
-        for nid, xn, yn in zip(grid[keep], x, y):
+        nids = first + np.arange(len(mesh.coords))
+        for nid, (xn, yn) in zip(nids, mesh.coords):
             self.node_at[int(nid)] = (blk.file, blk.line)
             self.row_of[int(nid)] = len(self.node_ids)
             self.node_ids.append(int(nid))
             self.coords.append((float(xn), float(yn)))
-        ex, ey = np.meshgrid(np.arange(nx), np.arange(ny))         # (ny, nx)
-        i0, j0 = (m * ex).ravel(), (m * ey).ravel()
-        corners = [grid[j0, i0], grid[j0, i0 + m], grid[j0 + m, i0 + m], grid[j0 + m, i0]]
-        mids = [grid[j0, i0 + 1], grid[j0 + 1, i0 + 2], grid[j0 + 2, i0 + 1], grid[j0 + 1, i0]] if m == 2 else []
-        conn = np.stack(corners + mids, axis=1)
         eid0 = max(self.elem_at, default=0) + 1
-        eids = eid0 + np.arange(nx * ny)
-        for eid, nodes in zip(eids, conn):
+        eids = eid0 + np.arange(len(mesh.conn))
+        for eid, nodes in zip(eids, nids[mesh.conn]):
             self._add_element(grp, blk.file, blk.line, int(eid), [int(n) for n in nodes])
         self._add_elset(name, [int(e) for e in eids])
-        rows = lambda ids: [self.row_of[int(n)] for n in ids]       # noqa: E731
-        sides = {"BOTTOM": (grid[0, :], eids.reshape(ny, nx)[0, :], 1),
-                 "RIGHT": (grid[:, -1], eids.reshape(ny, nx)[:, -1], 2),
-                 "TOP": (grid[-1, :], eids.reshape(ny, nx)[-1, :], 3),
-                 "LEFT": (grid[:, 0], eids.reshape(ny, nx)[:, 0], 4)}
-        for side, (nodes, elems, face) in sides.items():
+        for side in SIDES:
             key = f"{name}_{side}"
-            self._add_nset(key, rows(nodes))
+            self._add_nset(key, [self.row_of[int(n)] for n in nids[mesh.side_nodes[side]]])
             if key in self.m.surfaces:
                 self.pb.at(blk, f"surface {key} is already defined")
                 continue
-            self.m.surfaces[key] = Surface(key, np.asarray(elems, int), np.full(len(elems), face), blk.where)
+            elems, faces = mesh.side_faces[side]
+            self.m.surfaces[key] = Surface(key, eids[elems], faces, blk.where)
 
     def _set_members(self, blk, rows, kind: str, generate: bool) -> list[int] | None:
         """Ids (node rows for NSET, element ids for ELSET) listed by a *NSET / *ELSET block."""
@@ -468,13 +431,23 @@ class _Builder:
             if ids is None:
                 ok = False
                 continue
+            short = [e for e in ids if face > len(self.groups[self.elem_at[e][0]].cls.faces)]
+            if short:
+                cls = self.groups[self.elem_at[short[0]][0]].cls
+                self.pb.add(row.file, row.line, blk.keyword,
+                            f"element {short[0]} ({cls.__name__}) has faces S1..S{len(cls.faces)}, "
+                            f"not S{face}")
+                ok = False
+                continue
             elems += ids
             faces += [face] * len(ids)
         if ok:
             self.m.surfaces[name] = Surface(name, np.asarray(elems, int), np.asarray(faces, int), blk.where)
 
     def _plugin(self, blk, kind: str, type_name: str, pairs):
-        """Plugin class and validated parameters, or (None, None) after reporting."""
+        """Plugin class and validated parameters, or (None, None) after reporting.  The plugin is
+        built once, so that the constraints its constructor checks between parameters (KT + HB
+        > 0, say) are reported here: ``check`` refuses what ``run`` would."""
         try:
             cls = registry.get(kind, type_name)
         except KeyError as exc:
@@ -482,14 +455,16 @@ class _Builder:
             return None, None
         given = {pair.key: pair.text for _row, pair in pairs}
         try:
-            return cls, validate_params(cls, given)
+            values = validate_params(cls, given)
+            cls(**given)
         except ParamError as exc:
             self._param_error(blk, exc, pairs)
             return None, None
+        return cls, values
 
     def _param_error(self, blk, exc: ParamError, pairs) -> None:
         """Report each part of a ParamError at the data line of the parameter it names."""
-        line_of = {pair.key: row.line for row, pair in pairs}
+        line_of = {pair.key: row.line for row, pair in pairs or ()}
         for part in _split_param_error(str(exc)):
             words = set(re.findall(r"[A-Za-z_]\w*", part.upper()))
             key = next((k for k in line_of if k in words), None)
@@ -571,25 +546,15 @@ class _Builder:
         if np.any(np.diff(flat[:, 0]) <= 0):
             self.pb.at(blk, "amplitude times must be strictly increasing")
             return
-        amp = Amplitude(name, flat[:, 0], flat[:, 1])
-        amp.where = blk.where
-        self.m.amplitudes[name] = amp
-
-    #: *CHECK keys whose value is a name, not a number (the contact pair: its surface)
-    CHECK_NAMES = ("CONTACT",)
+        self.m.amplitudes[name] = Amplitude(name, flat[:, 0], flat[:, 1], blk.where)
 
     def _kw_check(self, blk, params, pairs):
-        values, ok = {}, True
-        for row, pair in pairs:
-            if pair.key.upper() in self.CHECK_NAMES:
-                values[pair.key] = str(pair.text).strip().upper()
-            elif not isinstance(pair.value, Num) or not np.isfinite(pair.value):
-                self.pb.add(row.file, row.line, blk.keyword, f"{pair.key} must be a number, got {pair.text!r}")
-                ok = False
-            else:
-                values[pair.key] = float(pair.value)
-        if ok:
-            self.m.checks.append({"name": params["NAME"], "type": params["TYPE"], "params": values,
+        cls, values = self._plugin(blk, "checks", params["TYPE"], pairs)
+        if cls is not None:
+            given = {k.upper() for _row, pair in pairs for k in (pair.key,)}
+            self.m.checks.append({"name": params["NAME"],
+                                  "type": registry.canonical("checks", params["TYPE"]),
+                                  "params": {k: v for k, v in values.items() if k.upper() in given},
                                   "where": blk.where})
 
     # ------------------------------------------------------------ the model is complete
@@ -598,7 +563,6 @@ class _Builder:
         m = self.m
         m.node_ids = np.asarray(self.node_ids, dtype=int)
         m.coords = np.asarray(self.coords, dtype=float).reshape(-1, 2)
-        m.reindex()
         for name, mat in m.materials.items():
             if name not in self.used_materials:
                 self.pb.at(mat.where, f"material {name} is never assigned: no *SOLID uses it")
@@ -613,7 +577,7 @@ class _Builder:
     def _axisymmetry(self) -> None:
         kinds = {}
         for grp in self.groups:
-            kinds.setdefault(bool(getattr(grp.cls, "axisymmetric", False)), grp)
+            kinds.setdefault(bool(grp.cls.axisymmetric), grp)
         if len(kinds) > 1:
             self.pb.at(kinds[True].block, f"axisymmetric elements ({kinds[True].type}) mixed with plane ones "
                                           f"({kinds[False].type}, line {kinds[False].block.line})")
@@ -643,15 +607,9 @@ class _Builder:
                                              sparams["ELSET"], sblk.where))
 
     def _jacobian(self, grp, keep, ids, conn) -> None:
-        xy = self.m.coords[conn]                                         # (e, a, 2)
-        if grp.nen in (4, 8):
-            detj = min_det_jacobian(xy)
-        elif hasattr(grp.cls, "min_jacobian"):
-            detj = np.asarray(grp.cls.min_jacobian(xy))
-        else:
-            return
-        size = np.ptp(xy, axis=1).max(axis=1)                           # (e,)
-        bad = np.flatnonzero(~(detj > 1e-10 * size**2))
+        """Refuse inverted or degenerate elements (the element class's own check)."""
+        bad, detj = grp.cls.invalid(self.m.coords[conn])
+        bad = np.flatnonzero(bad)
         for k in bad[:10]:
             f, ln = grp.lines[keep[k]]
             self.pb.add(f, ln, grp.block.keyword,
@@ -770,7 +728,16 @@ class _Builder:
                         f"{did_you_mean(unknown[0], OUTPUT_FIELDS)}; expected some of "
                         f"{', '.join(OUTPUT_FIELDS)} (separated by / or spaces)")
             return
-        self.step.output = OutputRequest(params["FREQUENCY"], fields, params["CONTACT"])
+        writers = tuple(w.upper() for w in re.split(r"[\s/;:+]+", params["WRITERS"] or "") if w)
+        known = registry.names("writers")
+        unknown = [w for w in writers if w not in known]
+        if unknown:
+            self.pb.add(blk.file, blk.line, blk.keyword,
+                        f"WRITERS: unknown writer {unknown[0]!r}{did_you_mean(unknown[0], known)}; "
+                        f"installed: {', '.join(known)} (separated by /)")
+            return
+        writers = tuple(registry.canonical("writers", w) for w in writers)
+        self.step.output = OutputRequest(params["FREQUENCY"], fields, params["CONTACT"], writers)
 
     def _kw_controls(self, blk, params, pairs):
         given = {pair.key: pair.text for _row, pair in pairs}

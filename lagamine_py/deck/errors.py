@@ -4,7 +4,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 
-class Problem(NamedTuple):
+class DeckProblem(NamedTuple):
     """One problem of a deck: where it is (file, line, keyword) and what was expected."""
     file: str
     line: int
@@ -21,11 +21,11 @@ class DeckError(Exception):
     items; ``str()`` gives one line per problem, ``file:line: *KEYWORD: message``."""
 
     def __init__(self, problems):
-        self.problems = [Problem(*p) for p in problems]
+        self.problems = [DeckProblem(*p) for p in problems]
         super().__init__("\n".join(str(p) for p in self.problems))
 
     @property
-    def items(self) -> list[Problem]:
+    def items(self) -> list[DeckProblem]:
         return self.problems
 
     def __reduce__(self):           # picklable (sweeps run decks in other processes)
@@ -36,10 +36,10 @@ class Problems:
     """Collector of problems; :meth:`raise_if_any` stops with one DeckError holding them all."""
 
     def __init__(self):
-        self.items: list[Problem] = []
+        self.items: list[DeckProblem] = []
 
     def add(self, file: str, line: int, keyword: str, message: str) -> None:
-        self.items.append(Problem(str(file), int(line), keyword, message))
+        self.items.append(DeckProblem(str(file), int(line), keyword, message))
 
     def at(self, where, message: str, line: int | None = None) -> None:
         """Add a problem at a block (anything with ``file``, ``line``, ``keyword``)."""

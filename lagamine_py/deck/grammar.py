@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pyparsing as pp
 
+from ..core.params import did_you_mean, parse_number
 from ..model import Where
-from ..registry import did_you_mean
 from .errors import Problems
 
 _WHITE = " \t\r"   # newline is significant
@@ -36,7 +36,7 @@ class Num(float):
     text: str
 
     def __new__(cls, text: str):
-        obj = super().__new__(cls, float(text.replace("d", "e").replace("D", "E")))
+        obj = super().__new__(cls, parse_number(text))
         obj.text = text
         return obj
 
@@ -107,7 +107,6 @@ class Block:
     line: int
     data: list[DataRow] = field(default_factory=list)
     text: list[str] = field(default_factory=list)          # *HEADING free text
-    param_order: list[tuple[str, str | None]] = field(default_factory=list)
     broken: bool = False      # its keyword line could not be read (already reported)
 
     @property
@@ -398,7 +397,7 @@ def _group(lines, problems: Problems) -> list[Block]:
                 if name in params:
                     problems.add(file, obj.line, obj.keyword, f"parameter {name} is given twice")
                 params[name] = value
-            blocks.append(Block(obj.keyword, params, file, obj.line, param_order=list(obj.params)))
+            blocks.append(Block(obj.keyword, params, file, obj.line))
         elif isinstance(obj, BadLine):
             kw = _bad_keyword(obj.text)
             if kw is None:

@@ -1,11 +1,12 @@
 """The keyword table: what each keyword accepts, as data.
 
 One declaration per keyword gives its scope (model data, or inside a ``*STEP``), its parameters
-(type, required or default) and the shape of its data lines (columns and their types, how many
-lines).  :func:`check_block` validates a block against it and converts the values, and
+(:class:`~lagamine_py.core.params.Param`, the declaration plugins use too) and the shape of its
+data lines (columns and their types, how many lines).  :func:`check_params` and
+:func:`check_data` validate a block against it and convert the values, and
 :func:`reference_markdown` writes the language reference from the same table.  Plugin
-parameters (``KEY=VALUE`` data of ``*MATERIAL``, ``*CONTACT LAW``) are declared by the plugins
-themselves and checked by the builder with :func:`lagamine_py.registry.validate_params`.
+parameters (``KEY=VALUE`` data of ``*MATERIAL``, ``*CONTACT LAW``, ``*CHECK``) are declared by
+the plugins themselves and checked by the builder against the same kind of declaration.
 """
 from __future__ import annotations
 
@@ -13,23 +14,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from ..registry import did_you_mean
+from ..core.params import INT_MAX as _INT_MAX, REQUIRED, Param, validate
 from .errors import Problems
 from .grammar import Block, DataRow, Num, Pair
-
-
-@dataclass(frozen=True)
-class P:
-    """A keyword parameter.  ``type``: name (upper-cased), text (as written), int, float,
-    yesno, choice (one of ``choices``), flag (no value)."""
-    name: str
-    type: str = "name"
-    required: bool = False
-    default: Any = None
-    choices: tuple = ()
-    low: float | None = None          # inclusive lower bound of a number
-    positive: bool = False            # number > 0
-    doc: str = ""
 
 
 @dataclass(frozen=True)
@@ -56,70 +43,76 @@ class Data:
 class Keyword:
     name: str
     scope: str                         # model | step | any
-    params: tuple[P, ...] = ()
+    params: tuple[Param, ...] = ()
     data: Data = Data()
     flag_data: tuple[tuple[str, Data], ...] = ()    # data shape when a flag parameter is given
     doc: str = ""
 
 
-_AMP = P("AMPLITUDE", doc="amplitude name (default: linear ramp over the step)")
-_OP = P("OP", "choice", default="MOD", choices=("MOD", "NEW"), doc="NEW removes the loads of this kind first")
+def _name(name: str, required: bool = False, doc: str = "") -> Param:
+    """A name parameter (upper-cased: names are case-insensitive)."""
+    return Param(name, str, REQUIRED if required else None, upper=True, doc=doc)
+
+
+_AMP = _name("AMPLITUDE", doc="amplitude name (default: linear ramp over the step)")
+_OP = Param("OP", str, "MOD", choices=("MOD", "NEW"), doc="NEW removes the loads of this kind first")
 _PAIRS = Data("pairs", doc="`KEY=VALUE` pairs")
 
 KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
     # ---------------------------------------------------------------- model data
     Keyword("HEADING", "model", data=Data("text", doc="free text"), doc="title of the model"),
-    Keyword("INCLUDE", "any", (P("INPUT", "text", True, doc="path, relative to the including file"),),
+    Keyword("INCLUDE", "any", (Param("INPUT", str, doc="path, relative to the including file"),),
             doc="read another file here"),
     Keyword("PARAMETER", "model", data=Data("pairs", min_lines=1, doc="`name = value` lines"),
             doc="parameters: `<name>` in later lines is replaced by the value"),
-    Keyword("NODE", "model", (P("NSET", doc="node set receiving these nodes"),),
+    Keyword("NODE", "model", (_name("NSET", doc="node set receiving these nodes"),),
             Data("rows", (Col("id", "int"), Col("x"), Col("y"), Col("z", optional=True)), min_lines=1,
                  doc="`id, x, y` (a z column must be 0)"), doc="nodes"),
-    Keyword("ELEMENT", "model", (P("TYPE", required=True, doc="element type (registry name or alias)"),
-                                 P("ELSET", doc="element set receiving these elements")),
+    Keyword("ELEMENT", "model", (_name("TYPE", True, doc="element type (registry name or alias)"),
+                                 _name("ELSET", doc="element set receiving these elements")),
             Data("rows", (Col("id", "int"), Col("node", "int")), repeat=1, min_lines=1,
                  doc="`id, n1, n2, ...`: corners counter-clockwise, then mid-sides"), doc="elements"),
-    Keyword("NSET", "model", (P("NSET", required=True), P("GENERATE", "flag")),
+    Keyword("NSET", "model", (_name("NSET", True), Param("GENERATE", flag=True, default=None)),
             Data("rows", (Col("node or nset", "ref"),), repeat=1, min_lines=1, doc="node ids or node set names"),
             (("GENERATE", Data("rows", (Col("first", "int"), Col("last", "int"), Col("step", "int", True)),
                                min_lines=1, doc="`first, last, step`")),), doc="node set"),
-    Keyword("ELSET", "model", (P("ELSET", required=True), P("GENERATE", "flag")),
+    Keyword("ELSET", "model", (_name("ELSET", True), Param("GENERATE", flag=True, default=None)),
             Data("rows", (Col("element or elset", "ref"),), repeat=1, min_lines=1,
                  doc="element ids or element set names"),
             (("GENERATE", Data("rows", (Col("first", "int"), Col("last", "int"), Col("step", "int", True)),
                                min_lines=1, doc="`first, last, step`")),), doc="element set"),
-    Keyword("MESH", "model", (P("NAME", required=True), P("TYPE", required=True, doc="element type"),
-                              P("X0", "float", default=0.0), P("Y0", "float", default=0.0),
-                              P("LX", "float", True, positive=True), P("LY", "float", True, positive=True),
-                              P("NX", "int", True, low=1), P("NY", "int", True, low=1)),
+    Keyword("MESH", "model", (_name("NAME", True), _name("TYPE", True, doc="element type"),
+                              Param("X0", float, 0.0), Param("Y0", float, 0.0),
+                              Param("LX", float, gt=0.0), Param("LY", float, gt=0.0),
+                              Param("NX", int, bounds=(1, None)), Param("NY", int, bounds=(1, None))),
             doc="structured rectangle: nodes, elements (elset NAME), nsets and surfaces NAME_BOTTOM, "
                 "NAME_TOP, NAME_LEFT, NAME_RIGHT"),
-    Keyword("SURFACE", "model", (P("NAME", required=True), P("TYPE", "choice", default="ELEMENT",
-                                                              choices=("ELEMENT",))),
+    Keyword("SURFACE", "model", (_name("NAME", True), Param("TYPE", str, "ELEMENT",
+                                                            choices=("ELEMENT",))),
             Data("rows", (Col("element or elset", "ref"), Col("face", "face")), min_lines=1,
                  doc="`element-or-elset, S1..S4`"), doc="element faces"),
-    Keyword("MATERIAL", "model", (P("NAME", required=True), P("LAW", required=True, doc="material law plugin")),
+    Keyword("MATERIAL", "model", (_name("NAME", True), _name("LAW", True, doc="material law plugin")),
             _PAIRS, doc="material: the law's parameters"),
-    Keyword("SOLID", "model", (P("ELSET", required=True), P("MATERIAL", required=True),
-                               P("THICKNESS", "float", default=1.0, positive=True)),
+    Keyword("SOLID", "model", (_name("ELSET", True), _name("MATERIAL", True),
+                               Param("THICKNESS", float, 1.0, gt=0.0)),
             doc="assigns a material to elements"),
-    Keyword("FOUNDATION", "model", (P("NAME", required=True),),
+    Keyword("FOUNDATION", "model", (_name("NAME", True),),
             Data("rows", (Col("x"), Col("y")), min_lines=3, doc="`x, y` points, an odd count >= 3"),
             doc="rigid foundation: parabolic arcs through points (1,2,3), (3,4,5), ..."),
-    Keyword("CONTACT LAW", "model", (P("NAME", required=True), P("TYPE", required=True, doc="contact law plugin")),
+    Keyword("CONTACT LAW", "model", (_name("NAME", True), _name("TYPE", True, doc="contact law plugin")),
             _PAIRS, doc="contact law: the plugin's parameters"),
-    Keyword("CONTACT", "model", (P("SURFACE", required=True), P("FOUNDATION", required=True),
-                                 P("LAW", required=True), P("GAUSS", "int", default=3, choices=(2, 3))),
+    Keyword("CONTACT", "model", (_name("SURFACE", True), _name("FOUNDATION", True),
+                                 _name("LAW", True), Param("GAUSS", int, 3, choices=(2, 3))),
             doc="contact elements on a surface against a foundation"),
-    Keyword("AMPLITUDE", "model", (P("NAME", required=True),),
+    Keyword("AMPLITUDE", "model", (_name("NAME", True),),
             Data("rows", (Col("time"), Col("value")), repeat=2, min_lines=1, doc="`time, value` pairs"),
             doc="piecewise linear load curve"),
-    Keyword("CHECK", "model", (P("NAME", required=True), P("TYPE", required=True)),
-            Data("pairs", doc="`KEY=VALUE` numbers"), doc="closed form the results are checked against"),
+    Keyword("CHECK", "model", (_name("NAME", True), _name("TYPE", True, doc="check plugin")),
+            Data("pairs", doc="`KEY=VALUE`: the check's parameters"),
+            doc="closed form the results are checked against"),
     # ---------------------------------------------------------------- steps
-    Keyword("STEP", "model", (P("NAME", "text"), P("NLGEOM", "yesno", default=False),
-                              P("INC", "int", default=1000, low=1)), doc="starts a step"),
+    Keyword("STEP", "model", (Param("NAME", str, None), Param("NLGEOM", bool, False),
+                              Param("INC", int, 1000, bounds=(1, None))), doc="starts a step"),
     Keyword("STATIC", "step", data=Data("rows", (Col("initial dt"), Col("step time"), Col("min dt", optional=True),
                                                  Col("max dt", optional=True)), min_lines=1, max_lines=1,
                                         doc="`initial dt, step time, min dt, max dt`"),
@@ -134,13 +127,17 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
     Keyword("DLOAD", "step", (_AMP, _OP),
             Data("rows", (Col("surface", "name"), Col("load type", "name"), Col("value")), min_lines=1,
                  doc="`surface, P, value`"), doc="pressure (positive into the body)"),
-    Keyword("FOUNDATION MOTION", "step", (P("NAME", required=True), _AMP),
+    Keyword("FOUNDATION MOTION", "step", (_name("NAME", True), _AMP),
             Data("rows", (Col("dx"), Col("dy")), min_lines=1, max_lines=1, doc="`dx, dy`"),
             doc="rigid translation of a foundation reached at the step end"),
-    Keyword("OUTPUT", "step", (P("FREQUENCY", "int", default=1, low=1), P("FIELDS", "text",
-                               doc="fields of the VTK body files: U, S, PEEQ, RF, separated by / or "
-                                   "spaces (default all)"),
-                               P("CONTACT", "yesno", default=True)), doc="output requests"),
+    Keyword("OUTPUT", "step", (Param("FREQUENCY", int, 1, bounds=(1, None)),
+                               Param("FIELDS", str, None,
+                                     doc="fields of the VTK body files: U, S, PEEQ, RF, separated "
+                                         "by / or spaces (default all)"),
+                               Param("CONTACT", bool, True),
+                               Param("WRITERS", str, None,
+                                     doc="registered writers, separated by / (default: the "
+                                         "built-ins)")), doc="output requests"),
     Keyword("CONTROLS", "step", data=_PAIRS, doc="Newton and step-controller settings"),
     Keyword("END STEP", "step", doc="ends a step"),
 )}
@@ -148,81 +145,18 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
 
 # ---------------------------------------------------------------- checking a block
 
-_INT_MAX = 2**31 - 1       # ids and counts must fit the int arrays of the Model
-
-
-def _number(text: str) -> float:
-    value = float(text.replace("d", "e").replace("D", "E"))
-    if not math.isfinite(value):
-        raise ValueError(text)
-    return value
-
-
-def _convert_param(p: P, raw: str | None) -> Any:
-    """Converted value of a parameter, or raise ValueError with the expectation."""
-    if p.type == "flag":
-        if raw is not None:
-            raise ValueError(f"{p.name} takes no value")
-        return True
-    if raw is None or raw == "":
-        raise ValueError(f"{p.name} needs a value ({p.name}=...)")
-    if p.type == "text":
-        return raw
-    if p.type == "name":
-        return raw.upper()
-    if p.type == "yesno":
-        up = raw.upper()
-        if up in ("YES", "TRUE", "ON"):
-            return True
-        if up in ("NO", "FALSE", "OFF"):
-            return False
-        raise ValueError(f"{p.name} must be YES or NO, got {raw!r}")
-    if p.type == "choice":
-        if raw.upper() not in p.choices:
-            raise ValueError(f"{p.name} must be one of {', '.join(p.choices)}, got {raw!r}"
-                             f"{did_you_mean(raw, p.choices)}")
-        return raw.upper()
-    try:
-        value = _number(raw)
-    except ValueError:
-        raise ValueError(f"{p.name} must be a number, got {raw!r}") from None
-    if p.type == "int":
-        if value != int(value) or abs(value) > _INT_MAX:
-            raise ValueError(f"{p.name} must be an integer below 2^31, got {raw!r}")
-        value = int(value)
-    if p.choices and value not in p.choices:
-        raise ValueError(f"{p.name} must be one of {', '.join(map(str, p.choices))}, got {raw!r}")
-    if p.positive and value <= 0:
-        raise ValueError(f"{p.name} must be > 0, got {raw!r}")
-    if p.low is not None and value < p.low:
-        raise ValueError(f"{p.name} must be >= {p.low:g}, got {raw!r}")
-    return value
-
-
 def check_params(spec: Keyword, block: Block, problems: Problems) -> dict[str, Any] | None:
     """Converted parameters (defaults filled), or None after reporting what is wrong."""
-    declared = {p.name: p for p in spec.params}
-    out, ok = {}, True
-    for name, raw in block.params.items():
-        p = declared.get(name)
-        if p is None:
-            problems.at(block, f"unknown parameter {name}{did_you_mean(name, declared)}; "
-                               f"expected {', '.join(declared) or 'no parameters'}")
-            ok = False
-            continue
-        try:
-            out[name] = _convert_param(p, raw)
-        except ValueError as exc:
-            problems.at(block, str(exc))
-            ok = False
+    out, errors = validate(spec.params, block.params)
+    for _, message in errors:
+        if message.startswith("unknown parameter") and not spec.params:
+            message = message.replace("it takes none", "*" + spec.name + " takes no parameters")
+        problems.at(block, message)
+    if errors:
+        return None
     for p in spec.params:
-        if p.name not in block.params:
-            if p.required:
-                problems.at(block, f"missing required parameter {p.name}=")
-                ok = False
-            elif p.type != "flag":
-                out[p.name] = p.default
-    return out if ok else None
+        out.setdefault(p.name, None if not p.flag else False)
+    return out
 
 
 def _convert_cell(col: Col, tok) -> Any:
@@ -343,16 +277,21 @@ def check_data(spec: Keyword, data: Data, block: Block, problems: Problems):
 
 # ---------------------------------------------------------------- reference
 
-def _param_doc(p: P) -> str:
-    if p.type == "flag":
+def _param_doc(p: Param) -> str:
+    if p.flag:
         return f"`{p.name}`"
-    if p.choices:
-        kind = "/".join(map(str, p.choices))
+    choices = p.allowed()
+    if choices:
+        kind = "/".join(map(str, choices))
+    elif p.type is bool:
+        kind = "YES/NO"
     else:
-        kind = {"name": "name", "text": "text", "int": "integer", "float": "number", "yesno": "YES/NO"}[p.type]
-    default = {True: "YES", False: "NO"}.get(p.default, p.default) if p.type == "yesno" else p.default
+        kind = {float: "number", int: "integer", str: "name" if p.upper else "text"}[p.type]
+    default = {True: "YES", False: "NO"}.get(p.default, p.default) if p.type is bool else p.default
     extra = "required" if p.required else (f"default {default}" if default is not None else "optional")
-    extra += ", > 0" if p.positive else (f", >= {p.low:g}" if p.low is not None else "")
+    extra += f", > {p.gt:g}" if p.gt is not None else ""
+    low = p.bounds[0]
+    extra += f", >= {low:g}" if low is not None and not choices else ""
     doc = f": {p.doc}" if p.doc else ""
     return f"`{p.name}=` ({kind}, {extra}){doc}"
 

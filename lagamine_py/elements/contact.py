@@ -72,22 +72,20 @@ law returning just ``p_u, tau_u, tau_v, tau_tau`` is chained as
 """
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 
+from .. import kernels
+from ..core.errors import ReturnMappingError
+from ..core.status import OPEN, STICK
+from ..core.tensors import RIGHT as _R, right_normal as _right
 from ..foundation import Foundation
-
-FAR = 1e30          # penetration handed to the law for a point whose line misses the foundation
-from ..laws.base import OPEN, STICK, ContactLaw, ReturnMappingError
-from ..laws.coulomb import _SNAP_BACK, _numba_kernels
-from .base import Group, GroupResult, StepContext
+from ..laws.base import ContactLaw
+from .base import ContactPoints, Group, GroupResult, StepContext
 from .shapes import gauss_1d, line_shape
 
-__all__ = ["ContactGroup"]
+__all__ = ["ContactGroup", "FAR"]
 
-_R = np.array([[0.0, 1.0], [-1.0, 0.0]])      # R t = (t_y, -t_x): right normal
-_R_SIGN = np.array([1.0, -1.0])                 # R t = t[:, ::-1] * _R_SIGN (exact)
+FAR = 1e30          # penetration handed to the law for a point whose line misses the foundation
 
 
 def _norm(t):
@@ -95,9 +93,6 @@ def _norm(t):
     return np.sqrt((t * t).sum(axis=-1))
 
 
-def _right(t):
-    """R t (g, 2) = (t_y, -t_x) for t (g, 2)."""
-    return t[:, ::-1] * _R_SIGN
 _I2 = np.eye(2)
 _OUT = ("p", "tau", "lam")
 
@@ -131,13 +126,14 @@ class ContactGroup(Group):
     name : str, the contact pair's name (``"<surface>-><foundation>"``); key of
         ``ctx.freeze_contact``.
     face_nodes : (f, nfn) node rows of each face, corner, corner[, mid], in the element's
-        counter-clockwise order (``lagamine_py.elements.shapes.Q8_FACES`` / ``Q4_FACES``).
+        counter-clockwise order (the element class's ``faces``).
     elements : (f,) deck ids of the solid elements owning the faces.
     faces : (f,) face numbers 1..4.
     coords0 : (n, 2) reference coordinates of all nodes.
     foundation : :class:`lagamine_py.foundation.Foundation`.
     foundation_name : str, key of ``ctx.foundation_old/new``.
-    law : :class:`lagamine_py.laws.base.ContactLaw` (reads ``law.theta``, ``law.substeps``).
+    law : :class:`lagamine_py.laws.base.ContactLaw` (its ``theta``, ``substeps``, ``subtol``,
+        ``submax`` split the increment).
     gauss : 2 or 3 Gauss points per face.
     axisymmetric : forces per radian (times the radius r of P) instead of times thickness.
     thickness : plane-strain out-of-plane thickness.
@@ -184,21 +180,17 @@ class ContactGroup(Group):
         self._P0, self._t0 = self._at_points(self._x0)
         self._jac_tol = 1e-14 * max(1.0, float(np.abs(self.coords0).max(initial=1.0)))
         self._start_cache = None          # see _start_penetration
-        try:
-            sig = inspect.signature(law.update)
-            self._law_frozen = ("frozen" in sig.parameters
-                                or any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()))
-        except (TypeError, ValueError):
-            self._law_frozen = False
+        self._kernel = False              # the fused kernel (use_kernels)
+        self._kernel_static = None
 
     # ----------------------------------------------------------------- helpers
-    def set_kernel(self, numba: bool) -> None:
-        """Let the law and the foundation use their numba kernels (``numba`` True: where they
-        have one, ``kernel_supported``, and numba imports) or force their NumPy path, the
-        reference (False).  ``Problem.set_kernel`` calls it (``KERNEL=NUMPY`` -> False)."""
-        for part in (self.law, self.foundation):
-            if hasattr(part, "use_kernel"):
-                part.use_kernel = bool(numba) and bool(getattr(part, "kernel_supported", False))
+    def use_kernels(self, on: bool) -> None:
+        """Compute the whole group through :mod:`lagamine_py.kernels.contact` (``on``, when the
+        law has a kernel vector -- COULOMB -- and the foundation a kernel, and numba imports),
+        or the NumPy reference; the foundation projects through its kernel likewise."""
+        self.foundation.use_kernels(on)
+        self._kernel = (bool(on) and self.law.kernel_vector() is not None
+                        and self.foundation.has_kernel() and kernels.module("contact") is not None)
 
     def init_state(self) -> dict[str, np.ndarray]:
         return self.law.init_state(self.ng)
@@ -273,7 +265,7 @@ class ContactGroup(Group):
         """d (g,) at the start of the increment (face positions xo, translation co).  It is the
         same at every Newton iteration of an increment, so the last one is kept and reused
         while the positions, the translation, NLGEOM and the foundation are bitwise the same."""
-        c = getattr(self, "_start_cache", None)
+        c = self._start_cache
         if (c is not None and c[0] == geo and c[1] is self.foundation
                 and np.array_equal(c[2], xo) and np.array_equal(c[3], co)):
             return c[4].copy()
@@ -293,22 +285,16 @@ class ContactGroup(Group):
         """Sub-intervals for this increment: ``law.substeps``, or with ``AUTO`` the smallest
         count that keeps the rotation of the axes per sub-interval below ``law.subtol``
         (capped at ``law.submax``; 1 without NLGEOM, where the axes do not turn)."""
-        n = getattr(self.law, "substeps", 1)
+        n = self.law.substeps
         if not (isinstance(n, str) and n.upper() == "AUTO"):
             return max(int(n), 1)
         if not geo:
             return 1
         angle = float(self.rotation(x_old, x_new).max(initial=0.0))
-        tol = float(getattr(self.law, "subtol", 0.01))
-        cap = int(getattr(self.law, "submax", 32))
+        tol, cap = float(self.law.subtol), int(self.law.submax)
         if not np.isfinite(angle):
             return cap
         return int(min(max(int(np.ceil(angle / tol - 1e-9)), 1), cap))
-
-    def _call_law(self, state, d, du, dv, frozen):
-        if frozen is not None and self._law_frozen:
-            return self.law.update(state, d, du, dv, frozen=frozen)
-        return self.law.update(state, d, du, dv)
 
     # ----------------------------------------------------------------- compute
     def _integrate(self, u_new, u_old, state, ctx, tangent):
@@ -319,7 +305,7 @@ class ContactGroup(Group):
         co, cn = self._translation(ctx, "old"), self._translation(ctx, "new")
         geo = bool(ctx.nlgeom)
         nsub = self.substeps_for(xo, xn, geo)
-        theta = float(getattr(self.law, "theta", 1.0))
+        theta = float(self.law.theta)
         frozen = self._frozen(ctx)
         frozen_open = None if frozen is None else (frozen == OPEN)
 
@@ -346,7 +332,7 @@ class ContactGroup(Group):
             e_v, dev = _de_v_dt(t_th)
             dv = e_v[:, 0] * rel[:, 0] + e_v[:, 1] * rel[:, 1]
             du = d_k - d_prev
-            new, tan = self._call_law(st, d_k, du, dv, frozen)
+            new, tan = self.law.update(st, d_k, du, dv, frozen=frozen)
             if tangent:
                 Ddv = self._kron(self._Ng, e_v)
                 if nsub != 1:
@@ -417,13 +403,12 @@ class ContactGroup(Group):
     def compute(self, u_new, u_old, state, ctx: StepContext, tangent: bool = True) -> GroupResult:
         """Contact forces ``f`` (f, nd) and ``K = df/du_new`` (f, nd, nd); see the module doc.
 
-        With the COULOMB law, a :class:`~lagamine_py.foundation.Foundation` and numba (both
-        allowing their kernels, see :meth:`set_kernel`) the whole computation runs in one
-        compiled loop over the points (:func:`lagamine_py.laws.coulomb_numba.contact_group`),
-        equal to this NumPy code to round-off."""
-        kernels = self._kernels()
-        if kernels is not None:
-            return self._compute_fused(kernels, u_new, u_old, state, ctx, tangent)
+        With the COULOMB law, a :class:`~lagamine_py.foundation.Foundation` and numba, when
+        switched on (:meth:`use_kernels`), the whole computation runs in one compiled loop over
+        the points (:func:`lagamine_py.kernels.contact.contact_group`), equal to this NumPy code
+        to round-off."""
+        if self._kernel:
+            return self._compute_fused(u_new, u_old, state, ctx, tangent)
         geo = bool(ctx.nlgeom)
         with np.errstate(invalid="ignore", divide="ignore"):
             st, D, P, t = self._integrate(u_new, u_old, state, ctx, tangent)
@@ -453,44 +438,35 @@ class ContactGroup(Group):
             K = Kg.reshape(self.nf, self.nq, self.nd, self.nd).sum(axis=1)
         return GroupResult(f=f, K=K, state=st, failure=failure)
 
-    def _kernels(self):
-        """:mod:`lagamine_py.laws.coulomb_numba` when this group can run fused (the law and the
-        foundation both support and allow their kernels, and numba imports), else None."""
-        law, found = self.law, self.foundation
-        if not (getattr(law, "use_kernel", False) and getattr(law, "kernel_supported", False)
-                and getattr(found, "use_kernel", False)
-                and getattr(found, "kernel_supported", False)):
-            return None
-        return _numba_kernels()
-
-    def _compute_fused(self, kernels, u_new, u_old, state, ctx, tangent) -> GroupResult:
+    def _compute_fused(self, u_new, u_old, state, ctx, tangent) -> GroupResult:
         """:meth:`compute` through the fused kernel (same sub-intervals, start penetration and
         its cache, failures)."""
+        kc = kernels.module("contact")
         geo = bool(ctx.nlgeom)
         co, cn = self._translation(ctx, "old"), self._translation(ctx, "new")
-        n = getattr(self.law, "substeps", 1)
-        nsub = None if isinstance(n, str) else max(int(n), 1)       # AUTO: from the positions
         cache = self._start_cache                 # see _start_penetration
         if cache is not None and cache[0] == geo and cache[1] is self.foundation:
             cache = cache[2:]
         else:
             cache = None
-        static = getattr(self, "_kernel_static", None)
-        if static is None:
+        if self._kernel_static is None:
             c, nq = np.ascontiguousarray, self.nq
-            static = self._kernel_static = (
+            self._kernel_static = (
                 c(self.N, float), c(self.dN, float), c(self.w, float), c(self._t0, float),
                 c(self._P0, float), c(self._At[:nq], float), c(self._RAt[:nq], float),
-                c(self._AP[:nq, 0, :], float))
+                c(self._AP[:nq, 0, :], float), self.axisymmetric, self.thickness,
+                self._touch_tol, FAR, self._jac_tol)
             self._face_nodes64 = c(self.face_nodes, np.int64)
-        law = self.law
-        st, f, K, outside, start, (snap, degenerate, nonfinite) = kernels.contact_group(
-            self, static, u_new, u_old, co, cn, nsub, float(getattr(law, "theta", 1.0)), geo,
-            tangent, state, self._frozen(ctx), law.kernel_vector(kernels), cache)
-        if start is not None:
-            self._start_cache = (geo, self.foundation) + start
+        xo, xn, reuse = kc.face_positions(u_old, u_new, self._face_nodes64, self._x0, cache, co)
+        nsub = self.substeps_for(xo, xn, geo)
+        st, f, K, outside, d_start, (snap, degenerate, nonfinite) = kc.contact_group(
+            self._kernel_static, self.foundation.kernel_arrays(), self.law.kernel_vector(),
+            xo, xn, reuse, None if cache is None else cache[2], co, cn, nsub,
+            float(self.law.theta), geo, tangent, state, self._frozen(ctx))
+        if not reuse:
+            self._start_cache = (geo, self.foundation, xo, np.array(co, float), d_start)
         if snap:
-            raise ReturnMappingError(_SNAP_BACK)
+            raise ReturnMappingError(self.law.failure_message)
         failure = None
         if degenerate:
             failure = f"contact {self.name}: degenerate face (zero Jacobian)"
@@ -501,26 +477,21 @@ class ContactGroup(Group):
         return GroupResult(f=f, K=K, state=st, failure=failure)
 
     def _inadmissible(self, st, ctx, bad=None) -> str | None:
-        """A failure message when the law reports points outside its yield cone
-        (``law.outside_cone(state)``, optional; or ``bad`` (g,) when already known), except
-        points held STICK by the solver."""
-        check = getattr(self.law, "outside_cone", None)
-        if bad is None and not callable(check):
-            return None
-        bad = np.asarray(check(st) if bad is None else bad, bool)
+        """A failure message when the law finds points it cannot accept
+        (:meth:`ContactLaw.inadmissible`, or ``bad`` (g,) when already known), except points
+        held STICK by the solver."""
+        bad = np.asarray(self.law.inadmissible(st) if bad is None else bad, bool)
         frozen = self._frozen(ctx)
         if frozen is not None:
-            bad &= np.asarray(frozen) != STICK
+            bad = bad & (np.asarray(frozen) != STICK)
         if not bad.any():
             return None
-        extra = (" (INDICATOR=CLASSICAL takes plastic loading for unloading under softening; "
-                 "use PREDICTOR)" if getattr(self.law, "indicator", "") == "CLASSICAL" else "")
         return (f"contact {self.name}: {int(bad.sum())} point(s) end outside the friction cone "
-                f"|tau| <= B + phi p{extra}")
+                f"|tau| <= B + phi p{self.law.inadmissible_hint()}")
 
     # ------------------------------------------------------------------ output
     def points(self, u_new, state, ctx: StepContext):
-        """Contact points for writers (:class:`lagamine_py.output.base.ContactPoints`).
+        """Contact points for writers (:class:`~lagamine_py.elements.base.ContactPoints`).
 
         ``x`` current P; ``p``, ``tau``, ``slip``, ``lam``, ``status`` from ``state``; ``gap``
         the signed distance d at the end configuration (NaN where the line misses the
@@ -529,7 +500,6 @@ class ContactGroup(Group):
         ``r ds`` (axisymmetry, per radian): ``P = int p dA``, ``T = int tau dA``, ``A = int
         dA`` over the points in contact (status not OPEN), and ``F`` (2,) the resultant force
         of the foundation on the body, ``-sum f`` (sum of the nodal contact forces)."""
-        from ..output.base import ContactPoints
         geo = bool(ctx.nlgeom)
         c = self._translation(ctx, "new")
         P, t = self._axes_t(self._face_x(u_new), geo)
@@ -539,15 +509,14 @@ class ContactGroup(Group):
         dA = wt * np.linalg.norm(t, axis=-1)
         p = np.asarray(state["p"], float)
         tau = np.asarray(state["tau"], float)
-        status = np.asarray(state.get("status", np.zeros(self.ng)), np.int8)
-        vec = p[:, None] * (t @ _R.T) - tau[:, None] * t
+        status = np.asarray(state["status"], np.int8)
+        vec = p[:, None] * _right(t) - tau[:, None] * t
         F = -np.einsum("gi,g->i", vec, wt)                         # sum_a N_a = 1 on a face
-        zero = np.zeros(self.ng)
         return ContactPoints(
             name=self.name, element=np.repeat(self.ids, self.nq),
             face=np.repeat(self.faces, self.nq), gauss=np.tile(np.arange(1, self.nq + 1), self.nf),
             x=P, p=p, tau=tau, gap=np.where(pr.found, pr.d, np.nan),
-            slip=np.asarray(state.get("slip", zero), float),
-            lam=np.asarray(state.get("lam", zero), float), status=status,
+            slip=np.asarray(state["slip"], float),
+            lam=np.asarray(state["lam"], float), status=status,
             P=float(np.sum(p * dA)), T=float(np.sum(tau * dA)),
             A=float(np.sum(dA[status != OPEN])), F=F)

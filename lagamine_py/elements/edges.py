@@ -1,9 +1,10 @@
 """Element faces (edges) and the edge interpolation shared by faces, pressure loads and contact.
 
-A face is a 2- or 3-node line in the node order of ``shapes.Q4_FACES`` / ``Q8_FACES``
-(corner, corner[, mid-side]), interpolated by ``shapes.line_shape`` on xi in [-1, 1].  Faces
-run counter-clockwise around their element, so the body lies on the *left* of the tangent
-``t = dx/dxi`` and the outward normal (unnormalised, length |t|) is ``(t_y, -t_x)``.
+A face is a 2- or 3-node line in the node order of its element class's ``faces`` (corner,
+corner[, mid-side]), interpolated by ``shapes.line_shape`` on xi in [-1, 1].  Faces run
+counter-clockwise around their element, so the body lies on the *left* of the tangent
+``t = dx/dxi`` and the outward normal (unnormalised, length |t|) is the right normal
+``(t_y, -t_x)``.
 
 Axes: ``f`` face, ``q`` Gauss point on the face, ``a``/``b`` face node, ``i``/``k`` spatial
 component, ``d`` face DOF (``2 a + i``).
@@ -13,17 +14,15 @@ from __future__ import annotations
 import numpy as np
 
 from .. import registry
+from ..core.tensors import RIGHT, right_normal
 from .base import Group, GroupResult, StepContext
 from .shapes import gauss_1d, line_shape
 
 __all__ = ["face_nodes", "surface_faces", "edge_geometry", "PressureGroup"]
 
-# rotation taking the tangent t to the unnormalised outward normal (t_y, -t_x)
-_ROT = np.array([[0.0, 1.0], [-1.0, 0.0]])
-
 
 def face_nodes(element_cls, conn: np.ndarray, faces: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """(f, nfn) node rows of faces ``faces`` (f,) 1..4 of elements at ``rows`` (f,) of ``conn``."""
+    """(f, nfn) node rows of faces ``faces`` (f,) 1.. of elements at ``rows`` (f,) of ``conn``."""
     local = np.asarray(element_cls.faces, dtype=np.int64)[np.asarray(faces, np.int64) - 1]
     return np.asarray(conn)[np.asarray(rows, np.int64)[:, None], local]
 
@@ -32,7 +31,7 @@ def surface_faces(model, surface_name: str):
     """Faces of a ``*SURFACE``: ``(face_node_rows (f, nfn), element_ids (f,), faces (f,))``.
 
     Raises KeyError for an unknown surface or element, ValueError when the surface mixes
-    faces with different node counts (Q4 and Q8 elements).
+    faces with different node counts (Q4 and Q8 elements, say).
     """
     surf = model.surfaces.get(surface_name)
     if surf is None:
@@ -69,7 +68,7 @@ def edge_geometry(x: np.ndarray, N: np.ndarray, dN: np.ndarray):
     """
     xq = np.einsum("qa,fai->fqi", N, x)
     t = np.einsum("qa,fai->fqi", dN, x)
-    return xq, t, t @ _ROT.T
+    return xq, t, right_normal(t)
 
 
 class PressureGroup(Group):
@@ -84,13 +83,11 @@ class PressureGroup(Group):
     ids : optional (f,) labels for messages (e.g. the owning element ids).
 
     ``pressure`` (f,) (or a scalar) is set by the step controller before each ``compute`` to
-    its value at ``t_new``; ``ctx.load_factor`` is *not* applied here.  With ``ctx.nlgeom``
+    its value at ``t_new``.  With ``ctx.nlgeom``
     the load follows the deformed face (exact, non-symmetric tangent, including the change
     of ``r`` in axisymmetry); otherwise it acts on the reference face and ``K = 0``.
     ``f`` is minus the external force (residual convention of ``elements.base``).
     """
-
-    params = ()
 
     def __init__(self, face_nodes, coords0, axisymmetric: bool, thickness: float = 1.0,
                  ids=None):
@@ -130,7 +127,7 @@ class PressureGroup(Group):
         K = np.zeros((nf, nfn, 2, nfn, 2))
         if ctx.nlgeom:
             # d n_i / d u_bk = dN_b R_ik ; d r / d u_bk = N_b delta_k0
-            K += np.einsum("fq,qa,qb,ik->faibk", pw * scale, self.N, self.dN, _ROT)
+            K += np.einsum("fq,qa,qb,ik->faibk", pw * scale, self.N, self.dN, RIGHT)
             if self.axisymmetric:
                 K[:, :, :, :, 0] += np.einsum("fq,qa,fqi,qb->faib", pw, self.N, n, self.N)
         return GroupResult(f, K.reshape(nf, 2 * nfn, 2 * nfn), state)

@@ -1,4 +1,5 @@
-"""Solid quadrilaterals Q8 / Q4 in plane strain and axisymmetry, small strain or NLGEOM.
+"""The isoparametric continuum element: any shape (Q4, Q8, T6 ...), plane strain or
+axisymmetry, small strain or NLGEOM.
 
 Array axes (see ``lagamine_py.laws.base``): ``e`` element, ``q`` Gauss point, ``a``/``b``
 element node, ``i``/``j``/``k``/``n``/``p`` spatial component (0 = x or r, 1 = y or z),
@@ -23,18 +24,11 @@ import copy
 
 import numpy as np
 
-from ..registry import register
-from .base import Group, GroupResult, StepContext
-from .shapes import Q4_FACES, Q8_FACES, gauss_quad, quad_shape
+from .. import kernels
+from ..core.tensors import det2 as _det2, inv2 as _inv2
+from .base import Element, GroupResult, StepContext
 
-__all__ = [
-    "SolidGroup", "Q8PlaneStrain", "Q8Axisymmetric", "Q8PlaneStrainReduced",
-    "Q8AxisymmetricReduced", "Q4PlaneStrain", "Q4Axisymmetric",
-    "sym_eig2", "hencky_to_b", "log_b",
-]
-
-_Q4_XI = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
-_Q8_XI = np.concatenate([_Q4_XI, [[0, -1], [1, 0], [0, 1], [-1, 0]]])
+__all__ = ["SolidElement", "sym_eig2", "hencky_to_b", "log_b"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -114,82 +108,31 @@ def _outer22(A: np.ndarray, c: np.ndarray) -> np.ndarray:
     return (c[..., None, None] * A)[..., :, :, None, None] * A[..., None, None, :, :]
 
 
-def _det2(A):
-    return A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
-
-
-def _inv2(A, det=None):
-    det = _det2(A) if det is None else det
-    inv = np.empty_like(A)
-    inv[..., 0, 0], inv[..., 1, 1] = A[..., 1, 1], A[..., 0, 0]
-    inv[..., 0, 1], inv[..., 1, 0] = -A[..., 0, 1], -A[..., 1, 0]
-    return inv / np.where(det == 0.0, 1.0, det)[..., None, None]
-
-
 # --------------------------------------------------------------------------------------------
 # element group
 
-class SolidGroup(Group):
-    """A group of solid quadrilaterals of one type and one material.
+class SolidElement(Element):
+    """The isoparametric continuum element group: elements of one type and one material.
+
+    The topology (shape functions, Gauss rule, faces ...) comes from the element class (a
+    reference shape mixed in, e.g. ``class Q8PlaneStrain(Quad8, SolidElement)``); everything
+    here works for any of them.
 
     Parameters
     ----------
     ids : (e,) deck element ids.
-    conn : (e, nen) node rows (Abaqus CPE8/CPE4 order).
+    conn : (e, nen) node rows (the element's node order).
     coords0 : (n, 2) reference coordinates of all nodes.
     law : MaterialLaw.
     thickness : plane-strain thickness (ignored in axisymmetry: integrals are per radian).
     """
-
-    params = ()
-    name = ""
-    nen = 8
-    axisymmetric = False
-    faces = Q8_FACES
-    ngauss = 3
-
-    # -- class-level geometry helpers ---------------------------------------------------------
-    @classmethod
-    def node_xi(cls) -> np.ndarray:
-        """(nen, 2) natural coordinates of the nodes."""
-        return _Q8_XI if cls.nen == 8 else _Q4_XI
-
-    @classmethod
-    def shape_functions(cls, pts: np.ndarray):
-        """N (q, a) and dN/dxi (q, a, 2) at natural points (q, 2)."""
-        return quad_shape(cls.nen, pts)
-
-    @classmethod
-    def gauss_rule(cls):
-        """Points (q, 2) and weights (q,) of the element's integration rule."""
-        return gauss_quad(cls.ngauss)
-
-    @classmethod
-    def min_jacobian(cls, coords: np.ndarray) -> np.ndarray:
-        """(e,) minimum det J over the Gauss points and the nodes of elements ``coords`` (e, nen, 2).
-
-        In axisymmetry an element with a node at r < 0, or a Gauss point at r <= 0, gets
-        ``-|min det J|`` (or -1 if that is 0), so that a ``> 0`` check rejects it.
-        """
-        coords = np.asarray(coords, float)
-        pts = np.concatenate([cls.gauss_rule()[0], cls.node_xi()])
-        N, dN = cls.shape_functions(pts)
-        J = np.einsum("eai,qak->eqik", coords, dN)
-        out = _det2(J).min(axis=1)
-        if cls.axisymmetric:
-            r = coords[..., 0]
-            size = np.ptp(coords.reshape(len(coords), -1), axis=1) + 1e-300
-            r_gauss = np.einsum("qa,ea->eq", N[: len(pts) - cls.nen], r)
-            bad = (r.min(axis=1) < -1e-12 * size) | (r_gauss.min(axis=1) <= 0.0)
-            out = np.where(bad, np.where(out == 0.0, -1.0, -np.abs(out)), out)
-        return out
 
     # -- construction -------------------------------------------------------------------------
     def __init__(self, ids, conn, coords0, law, thickness: float = 1.0):
         self.ids = np.asarray(ids)
         self.conn = np.asarray(conn, dtype=np.int64)
         if self.conn.ndim != 2 or self.conn.shape[1] != self.nen:
-            raise ValueError(f"{self.name or type(self).__name__}: connectivity must be "
+            raise ValueError(f"{type(self).__name__}: connectivity must be "
                              f"(e, {self.nen}), got {self.conn.shape}")
         self.coords0 = np.asarray(coords0, float)
         self.law = law
@@ -273,9 +216,9 @@ class SolidGroup(Group):
             return self._large_strain(ue_new, ue_old, state, law_state, tangent)
         return self._small_strain(ue_new, ue_old, state, law_state, tangent)
 
-    def _chunk_views(self) -> list[tuple[slice, "SolidGroup"]]:
+    def _chunk_views(self) -> list[tuple[slice, "SolidElement"]]:
         """Shallow copies of the group restricted to consecutive element ranges (built once)."""
-        if getattr(self, "_views", None) is None:
+        if self._views is None:
             ne = len(self.conn)
             n = -(-ne // self.chunk)
             bounds = np.linspace(0, ne, n + 1).round().astype(int)       # even chunk sizes
@@ -437,32 +380,22 @@ class SolidGroup(Group):
 
 
     # -- optional fused kernel (numba): compute + scatter, no (e, nd, nd) array -----------------
-    def kernel_supported(self) -> bool:
-        """True when the numba kernel reproduces this group: numba imports and the law is
-        ELASTIC, J2_LINEAR or RAMBERG_OSGOOD (exactly; subclasses and plugins use NumPy)."""
-        try:
-            from .numba_kernels import law_parameters
-        except ImportError:
-            return False
-        return law_parameters(self.law) is not None
+    def use_kernels(self, on: bool) -> None:
+        """Compute through :mod:`lagamine_py.kernels.solid` (``on``, where the law has kernel
+        parameters: the built-in laws) or the NumPy reference."""
+        self.fused = bool(on) and self.law.kernel_parameters() is not None \
+            and kernels.module("solid") is not None
 
     def compute_into(self, u_new: np.ndarray, u_old: np.ndarray, state: dict[str, np.ndarray],
                      ctx: StepContext, tangent: bool, data: np.ndarray | None,
                      f_out: np.ndarray, positions: np.ndarray) -> GroupResult:
-        """:meth:`compute` through the numba kernel, scattering as it goes.
-
-        Adds the tangent into the CSR ``data`` (nnz,) at ``positions`` (e nd nd,) (the group's
-        ``Pattern.positions``) and the forces into ``f_out`` (ndof,) at :attr:`dofs`.  Returns
-        a :class:`GroupResult` with the element forces ``f`` (e, nd), ``K = None`` (it is in
-        ``data``), the same trial state and the same failures as :meth:`compute`.  Only for a
-        group with :meth:`kernel_supported`.
-        """
-        from . import numba_kernels as nk
-
+        """:meth:`compute` through the numba kernel, scattering as it goes (see
+        :meth:`Group.compute_into`); the same trial state and failures as :meth:`compute`."""
+        nk = kernels.module("solid")
         if self._bad0.any():
             return self._failure(self._bad0, "non-positive reference Jacobian (or r <= 0)",
                                  state, False)
-        kind, lp, Del = nk.law_parameters(self.law)          # read afresh: a few floats
+        kind, lp, Del = self.law.kernel_parameters()            # read afresh: a few floats
         conn, N, dNdX, R0, w0, dofs = self._kernel_geometry()
         ne, nd = dofs.shape
         nq = self.nq
@@ -478,10 +411,10 @@ class SolidGroup(Group):
             pos = np.asarray(positions, np.int64).reshape(ne, nd, nd)
         else:
             data, pos = np.empty(0), np.empty((0, 0, 0), np.int64)
-        nk.solid_kernel(bool(ctx.nlgeom), bool(tangent), bool(self.axisymmetric), kind, lp, Del,
-                        conn, u_new, u_old, N, dNdX, R0, w0, eps_e_n, peeq_n, old, bad_old,
-                        new_state["eps_e"], new_state["peeq"], new_state["stress"], fe, flags,
-                        data, f_out, pos, dofs, nk.scratch_arrays(self.nen, nq))
+        nk.solid_group(bool(ctx.nlgeom), bool(tangent), bool(self.axisymmetric), kind, lp, Del,
+                       conn, u_new, u_old, N, dNdX, R0, w0, eps_e_n, peeq_n, old, bad_old,
+                       new_state["eps_e"], new_state["peeq"], new_state["stress"], fe, flags,
+                       data, f_out, pos, dofs, nk.scratch_arrays(self.nen, nq))
         for code, what in ((nk.BAD_DET_F, "non-positive det F"),
                            (nk.RETURN_MAP_FAILED, "return mapping failed")):
             if (flags == code).any():
@@ -499,10 +432,10 @@ class SolidGroup(Group):
         return arrays
 
     def _kernel_start(self, u_old, eps_e_n):
-        """``start_kernel``'s (e, q, 9) and (e,) arrays, kept while ``u_old`` and ``eps_e_n``
-        are unchanged (every Newton iteration of an increment), as ``_start_of_increment``."""
-        from .numba_kernels import scratch_arrays, start_kernel
-
+        """The start arrays of the NLGEOM kernel, (e, q, 9) and (e,), kept while ``u_old`` and
+        ``eps_e_n`` are unchanged (every Newton iteration of an increment), as
+        ``_start_of_increment``."""
+        nk = kernels.module("solid")
         key = self._cache.get("kernel_old_key")
         if (key is not None and key[0].shape == u_old.shape and key[1].shape == eps_e_n.shape
                 and np.array_equal(key[0], u_old) and np.array_equal(key[1], eps_e_n)):
@@ -510,8 +443,8 @@ class SolidGroup(Group):
         conn, N, dNdX, R0, _, _ = self._kernel_geometry()
         ne, nq = R0.shape
         old, bad_old = np.empty((ne, nq, 9)), np.empty(ne, np.int8)
-        start_kernel(bool(self.axisymmetric), conn, u_old, N, dNdX, R0, eps_e_n, old, bad_old,
-                     scratch_arrays(self.nen, nq))
+        nk.start_group(bool(self.axisymmetric), conn, u_old, N, dNdX, R0, eps_e_n, old, bad_old,
+                       nk.scratch_arrays(self.nen, nq))
         self._cache["kernel_old_key"] = (u_old.copy(), eps_e_n.copy())
         self._cache["kernel_old"] = (old, bad_old)
         return old, bad_old
@@ -556,26 +489,3 @@ def _vec_to_stress2(s: np.ndarray) -> np.ndarray:
     T[..., 0, 0], T[..., 1, 1] = s[..., 0], s[..., 1]
     T[..., 0, 1] = T[..., 1, 0] = s[..., 3]
     return T
-
-
-def _element(name, nen, axisymmetric, ngauss, doc):
-    cls = type(_CLASS_NAMES[name], (SolidGroup,), {
-        "name": name, "nen": nen, "axisymmetric": axisymmetric,
-        "faces": Q8_FACES if nen == 8 else Q4_FACES, "ngauss": ngauss, "__doc__": doc,
-        "__module__": __name__,
-    })
-    return register("elements", name)(cls)
-
-
-_CLASS_NAMES = {"Q8PE": "Q8PlaneStrain", "Q8AX": "Q8Axisymmetric",
-                "Q8PER": "Q8PlaneStrainReduced", "Q8AXR": "Q8AxisymmetricReduced",
-                "Q4PE": "Q4PlaneStrain", "Q4AX": "Q4Axisymmetric"}
-
-Q8PlaneStrain = _element("Q8PE", 8, False, 3, "8-node plane-strain quadrilateral, 3x3 Gauss.")
-Q8Axisymmetric = _element("Q8AX", 8, True, 3, "8-node axisymmetric quadrilateral, 3x3 Gauss.")
-Q8PlaneStrainReduced = _element("Q8PER", 8, False, 2,
-                                "8-node plane-strain quadrilateral, 2x2 reduced Gauss (CPE8R).")
-Q8AxisymmetricReduced = _element("Q8AXR", 8, True, 2,
-                                 "8-node axisymmetric quadrilateral, 2x2 reduced Gauss (CAX8R).")
-Q4PlaneStrain = _element("Q4PE", 4, False, 2, "4-node plane-strain quadrilateral, 2x2 Gauss.")
-Q4Axisymmetric = _element("Q4AX", 4, True, 2, "4-node axisymmetric quadrilateral, 2x2 Gauss.")

@@ -66,21 +66,27 @@ forced by the shrinking cone is not lost; only then are ``p`` and ``tau`` zeroed
 by the classical one with the actual (plastic) rates of (10) at the start,
 ``dp df/dp + dtau df/dtau = H (sgn KT dv - phi dp) / (H + KT)``: it is 0 for perfect plasticity
 and has the wrong sign when softening (H < 0).  It exists only to show that failure, which
-is reported, not passed on: :meth:`Coulomb.outside_cone` finds the points that end outside
+is reported, not passed on: :meth:`Coulomb.inadmissible` finds the points that end outside
 the cone and the contact element fails the increment on them (cut-back, then exit 3).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..registry import Param, ParamError, register
-from .base import OPEN, SLIP, STICK, ContactLaw, ReturnMappingError
+from ..core.errors import ReturnMappingError
+from ..core.params import Param, ParamError
+from ..core.status import OPEN, SLIP, STICK
+from ..kernels import layout as kl
+from .base import ContactLaw
 
-__all__ = ["Coulomb"]
+__all__ = ["Coulomb", "ON_SURFACE_RTOL", "SNAP_BACK"]
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
-_ON_SURFACE_RTOL = 1e-10
+#: a point with ``f >= -ON_SURFACE_RTOL (radius + |tau|)`` starts on the yield surface
+ON_SURFACE_RTOL = 1e-10
 _ADMISSIBLE_RTOL = 1e-7    # |tau| beyond the cone by more than this (relative): an error
+#: the message of a softening snap-back (the increment is cut back)
+SNAP_BACK = "COULOMB: KT + dB/dlam + p dphi/dlam <= 0 at a slipping point (softening snap-back)"
 
 
 def _kink(v0: float, slope: float) -> float:
@@ -98,39 +104,23 @@ def _clipped_linear(v0: float, slope: float, lam: np.ndarray):
     return np.maximum(v0 + slope * lam, 0.0), np.where(active, slope, 0.0)
 
 
-_SNAP_BACK = "COULOMB: KT + dB/dlam + p dphi/dlam <= 0 at a slipping point (softening snap-back)"
-_KERNELS: list = []
-
-
-def _numba_kernels():
-    """:mod:`lagamine_py.laws.coulomb_numba`, or None without numba (imported once, lazily:
-    numba takes a few tenths of a second to import)."""
-    if not _KERNELS:
-        try:
-            from . import coulomb_numba
-        except ImportError:
-            coulomb_numba = None
-        _KERNELS.append(coulomb_numba)
-    return _KERNELS[0]
-
-
 def _as_shape(x, shape) -> np.ndarray:
     """``x`` as a float array of ``shape`` (a broadcast view only when it is not one already)."""
     x = np.asarray(x, float)
     return x if x.shape == shape else np.broadcast_to(x, shape)
 
 
-@register("contact_laws", "COULOMB")
 class Coulomb(ContactLaw):
     """Elasto-plastic Coulomb friction with adhesion and isotropic hardening (paper, eqs. 1-11).
 
     Arrays are (g,) over contact Gauss points.  See the module docstring for the integration.
     """
 
+    failure_message = SNAP_BACK
+
     params = (
-        Param("KP", float, bounds=(0.0, None), unit="stress/length", doc="normal penalty (> 0)"),
-        Param("KT", float, bounds=(0.0, None), unit="stress/length",
-              doc="tangential penalty (> 0)"),
+        Param("KP", float, gt=0.0, unit="stress/length", doc="normal penalty"),
+        Param("KT", float, gt=0.0, unit="stress/length", doc="tangential penalty"),
         Param("PHI", float, bounds=(0.0, None), doc="friction coefficient phi at lam = 0"),
         Param("B", float, 0.0, bounds=(0.0, None), unit="stress", doc="adhesion B at lam = 0"),
         Param("HPHI", float, 0.0, unit="1/length", doc="dphi/dlam (phi clipped at >= 0)"),
@@ -141,33 +131,20 @@ class Coulomb(ContactLaw):
         Param("SUBSTEPS", int, 1, bounds=(1, None), choices=("AUTO",),
               doc="sub-intervals per increment (read by the contact element); AUTO: chosen "
                   "per increment so that the local axes turn by at most SUBTOL in each"),
-        Param("SUBTOL", float, 0.01, bounds=(0.0, None), unit="rad",
-              doc="SUBSTEPS=AUTO: largest rotation of the local axes per sub-interval (> 0)"),
+        Param("SUBTOL", float, 0.01, gt=0.0, unit="rad",
+              doc="SUBSTEPS=AUTO: largest rotation of the local axes per sub-interval"),
         Param("SUBMAX", int, 32, bounds=(1, None),
               doc="SUBSTEPS=AUTO: cap on the number of sub-intervals per increment"),
         Param("INDICATOR", str, "PREDICTOR", choices=("PREDICTOR", "CLASSICAL"),
               doc="loading indicator: PREDICTOR (paper); CLASSICAL only to show its failure"),
     )
-    doc = "Godinas-Charlier-Cescotto elasto-plastic friction in (p, tau), integrated exactly."
 
     def __init__(self, **values):
         super().__init__(**values)
-        for name in ("KP", "KT"):
-            if self.p[name] <= 0.0:  # declared bounds are inclusive; a zero penalty is no law
-                raise ParamError(f"{name} must be > 0, got {self.p[name]:g}")
         if self.kt + min(self.hb, 0.0) <= 0.0:
             raise ParamError(f"HB = {self.hb:g} softens faster than the tangential penalty "
                              f"KT = {self.kt:g} allows (KT + HB must be > 0: snap-back)")
-        if self.substeps == "AUTO" and self.subtol <= 0.0:
-            # AUTO is resolved by the contact element (this law integrates each sub-interval
-            # exactly; sub-intervals only refine the rotation of the local axes)
-            raise ParamError(f"SUBTOL must be > 0 with SUBSTEPS=AUTO, got {self.subtol:g}")
-        # the numba kernel (lagamine_py.laws.coulomb_numba), when switched on and numba imports:
-        # the same update point by point.  Exact type only (a subclass may change anything).
-        # Off by default: the NumPy path is the reference, and a first compile takes ~10 s.
-        self.kernel_supported = type(self) is Coulomb
-        self.use_kernel = False               # switched on by ContactGroup.set_kernel (KERNEL=)
-        self._lv = None                       # the kernel's parameter vector, on first use
+        self._vector = None                   # the kernel's parameter vector, on first use
         # the finite clipping kinks of B(lam) and phi(lam) (softening only); without them the
         # return finishes in one piece and the dissipation integral has one piece
         self._kinks = tuple(k for k in (_kink(self.b, self.hb), _kink(self.phi, self.hphi))
@@ -185,12 +162,30 @@ class Coulomb(ContactLaw):
         return _clipped_linear(self.phi, self.hphi, np.asarray(lam, float))
 
     # -- one sub-interval ----------------------------------------------------------------
-    def kernel_vector(self, kernels) -> np.ndarray:
-        """The law's parameters as the numba kernels read them (``kernels.law_vector``), built
-        on first use and kept (the parameters do not change during a run)."""
-        if self._lv is None:
-            self._lv = kernels.law_vector(self)
-        return self._lv
+    def kernel_vector(self):
+        """The parameters as :mod:`lagamine_py.kernels.contact` reads them (layout in
+        :mod:`lagamine_py.kernels.layout`); None for a subclass, which may change anything."""
+        if type(self) is not Coulomb:
+            return None
+        if self._vector is None:
+            v = np.zeros(kl.COULOMB_VECTOR)
+            v[kl.COULOMB_KP], v[kl.COULOMB_KT] = self.kp, self.kt
+            v[kl.COULOMB_PHI], v[kl.COULOMB_B] = self.phi, self.b
+            v[kl.COULOMB_HPHI], v[kl.COULOMB_HB] = self.hphi, self.hb
+            v[kl.COULOMB_CLASSICAL] = self.indicator == "CLASSICAL"
+            v[kl.COULOMB_PREDICTOR] = self.indicator == "PREDICTOR"
+            v[kl.COULOMB_NK] = len(self._kinks)
+            v[kl.COULOMB_K1] = self._kinks[0] if len(self._kinks) > 0 else np.inf
+            v[kl.COULOMB_K2] = self._kinks[1] if len(self._kinks) > 1 else np.inf
+            v[kl.COULOMB_SNAP] = self._may_snap_back
+            self._vector = v
+        return self._vector
+
+    def penalties(self) -> dict[str, tuple[float, bool]]:
+        """KP always plays; KT only with friction or adhesion (``PHI``, ``B`` or their
+        hardening nonzero): frictionless contact never uses it."""
+        friction = any(v != 0.0 for v in (self.phi, self.b, self.hphi, self.hb))
+        return {"KP": (self.kp, True), "KT": (self.kt, friction)}
 
     def update(self, state, d, du, dv, frozen=None):
         """Integrate one sub-interval for all points (see :class:`ContactLaw`).
@@ -213,13 +208,6 @@ class Coulomb(ContactLaw):
 
           (``contact_point.drive(..., tangent=True)`` does exactly this).
         """
-        kernels = _numba_kernels() if self.use_kernel else None
-        if kernels is not None and np.ndim(state["p"]) == 1:
-            new, tan, bad = kernels.coulomb_update(self.kernel_vector(kernels), state, d, du, dv,
-                                                   frozen)
-            if bad:
-                raise ReturnMappingError(_SNAP_BACK)
-            return new, tan
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             # masked formulas are evaluated everywhere by np.where; unused lanes may overflow
             return self._update(state, d, du, dv, frozen)
@@ -289,7 +277,7 @@ class Coulomb(ContactLaw):
                                 dmat, phi1, active)
         return new_state, tan
 
-    def outside_cone(self, state) -> np.ndarray:
+    def inadmissible(self, state) -> np.ndarray:
         """(g,) bool: points of ``state`` outside the yield cone, ``|tau| > B(lam) + phi(lam) p``
         beyond round-off (``1e-7 (|tau| + radius + p) + 1e-12 KT``: with PHI = B = 0 the exact
         tau = 0 comes out as the round-off of ``tau_tr - KT dlam``).
@@ -305,6 +293,10 @@ class Coulomb(ContactLaw):
         abs_tau = np.abs(tau)
         tol = _ADMISSIBLE_RTOL * (radius + abs_tau + p) + 1e-12 * self.kt
         return abs_tau - radius > tol
+
+    def inadmissible_hint(self) -> str:
+        return (" (INDICATOR=CLASSICAL takes plastic loading for unloading under softening; "
+                "use PREDICTOR)" if self.indicator == "CLASSICAL" else "")
 
     def _hardening(self, lam):
         """``B, B', phi, phi'`` at ``lam`` (:meth:`adhesion`, :meth:`friction`), as plain floats
@@ -335,7 +327,7 @@ class Coulomb(ContactLaw):
         sig_tr = np.where(tau_tr >= 0.0, 1.0, -1.0)
         sig0 = np.where(tau0 != 0.0, np.sign(tau0), np.where(dv_c >= 0.0, 1.0, -1.0))
         # on the surface at the start (a re-contact starts at tau = p = 0: on it iff B = 0)
-        on = contact & (f0 >= -_ON_SURFACE_RTOL * (radius0 + abs_tau0))
+        on = contact & (f0 >= -ON_SURFACE_RTOL * (radius0 + abs_tau0))
         indicator = sig0 * kt * dv_c - phi0 * (p1 - p0)        # elastic-predictor rates
         pos_tr = f_tr > 0.0
         if self.indicator == "CLASSICAL":                       # actual (plastic) rates
@@ -380,7 +372,7 @@ class Coulomb(ContactLaw):
             else:                                           # no kink ahead of any lam
                 cross, finish = None, ~done
             if self._may_snap_back and np.any(finish & (kt + h <= 0.0)):
-                raise ReturnMappingError(_SNAP_BACK)
+                raise ReturnMappingError(SNAP_BACK)
             dmat = np.where(finish, kt + h, dmat)
             if cross is None:
                 lam = np.where(finish, lam + step, lam)

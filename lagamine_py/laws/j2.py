@@ -19,35 +19,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..registry import Param, ParamError, register
+from ..core.params import Param
+from ..core.tensors import NORMAL as _NORMAL, elastic_matrix, isotropic_moduli
+from ..kernels.layout import (J2_LINEAR, SOLID_G, SOLID_H, SOLID_K, SOLID_SIGMAY,
+                              SOLID_VECTOR)
 from .base import MaterialLaw
 
-__all__ = ["J2Plasticity", "J2Linear", "isotropic_moduli", "elastic_matrix", "von_mises"]
+__all__ = ["J2Plasticity", "J2Linear", "YIELD_RTOL"]
 
 # Relative margin above the current yield stress for a point to count as plastic: a point
 # re-evaluated at its converged state (zero increment) stays elastic despite round-off.
 YIELD_RTOL = 1e-12
 
-_NORMAL = np.array([1.0, 1.0, 1.0, 0.0])          # identity tensor as a 4-vector
 _DEV = np.diag([1.0, 1.0, 1.0, 0.5])              # engineering strain -> tensor components
 _DEV[:3, :3] -= 1.0 / 3.0                          # ... and deviatoric part (2G * _DEV = dev. stiffness)
-
-
-def isotropic_moduli(E: float, nu: float) -> tuple[float, float]:
-    """Bulk and shear moduli ``(K, G)`` from Young's modulus and Poisson's ratio."""
-    return E / (3.0 * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
-
-
-def elastic_matrix(E: float, nu: float) -> np.ndarray:
-    """Isotropic elasticity ``D`` (4, 4) with engineering-shear columns (``s12 = G g12``)."""
-    K, G = isotropic_moduli(E, nu)
-    return K * np.outer(_NORMAL, _NORMAL) + 2.0 * G * _DEV
-
-
-def von_mises(stress: np.ndarray) -> np.ndarray:
-    """Von Mises equivalent stress (...) of a stress 4-vector (...,4)."""
-    s = stress - stress[..., :3].mean(-1, keepdims=True) * _NORMAL
-    return np.sqrt(1.5 * (np.sum(s[..., :3] ** 2, -1) + 2.0 * s[..., 3] ** 2))
 
 
 class J2Plasticity(MaterialLaw):
@@ -56,16 +41,10 @@ class J2Plasticity(MaterialLaw):
     Subclasses implement :meth:`yield_stress` and :meth:`_return_map`.
     """
 
-    #: parameters that must be strictly positive (Param bounds are inclusive)
-    positive: tuple[str, ...] = ("E",)
-
     def __init__(self, **values):
         super().__init__(**values)
-        bad = [f"{k} must be > 0, got {self.p[k]:g}" for k in self.positive if not self.p[k] > 0.0]
-        if bad:
-            raise ParamError("; ".join(bad))
-        self.K, self.G = isotropic_moduli(self.p["E"], self.p["NU"])
-        self.D_elastic = elastic_matrix(self.p["E"], self.p["NU"])
+        self.K, self.G = isotropic_moduli(self.values["E"], self.values["NU"])
+        self.D_elastic = elastic_matrix(self.values["E"], self.values["NU"])
 
     # -- to implement ---------------------------------------------------------------------
     def yield_stress(self, peeq: np.ndarray) -> np.ndarray:
@@ -129,27 +108,30 @@ class J2Plasticity(MaterialLaw):
         return stress.reshape(shape + (4,)), D.reshape(shape + (4, 4)), new_state, ok.reshape(shape)
 
 
-@register("laws", "J2_LINEAR")
 class J2Linear(J2Plasticity):
     """J2 plasticity with linear isotropic hardening ``sigma_y = SIGMAY + H peeq``
     (``H = 0``: perfect plasticity).  The return mapping is closed-form."""
 
     params = (
-        Param("E", float, bounds=(0.0, None), unit="stress", doc="Young's modulus (> 0)"),
+        Param("E", float, gt=0.0, unit="stress", doc="Young's modulus"),
         Param("NU", float, bounds=(-0.999, 0.4999), doc="Poisson's ratio"),
-        Param("SIGMAY", float, bounds=(0.0, None), unit="stress", doc="initial yield stress (> 0)"),
+        Param("SIGMAY", float, gt=0.0, unit="stress", doc="initial yield stress"),
         Param("H", float, 0.0, bounds=(0.0, None), unit="stress",
               doc="hardening modulus d sigma_y / d peeq (0: perfect plasticity)"),
     )
-    doc = "Von Mises plasticity with linear isotropic hardening (H = 0: perfectly plastic)."
-
-    positive = ("E", "SIGMAY")
-
     def yield_stress(self, peeq):
-        return self.p["SIGMAY"] + self.p["H"] * np.asarray(peeq, dtype=float)
+        return self.values["SIGMAY"] + self.values["H"] * np.asarray(peeq, dtype=float)
 
     def _return_map(self, q_tr, peeq_n):
-        H, G3 = self.p["H"], 3.0 * self.G
+        H, G3 = self.values["H"], 3.0 * self.G
         dp = (q_tr - self.yield_stress(peeq_n)) / (G3 + H)
         return (q_tr - G3 * dp, peeq_n + dp, np.full_like(q_tr, H / (G3 + H)),
                 np.ones(q_tr.shape, dtype=bool))
+
+    def kernel_parameters(self):
+        if type(self) is not J2Linear:           # a subclass may change anything: NumPy
+            return None
+        p = np.zeros(SOLID_VECTOR)
+        p[SOLID_K], p[SOLID_G] = self.K, self.G
+        p[SOLID_SIGMAY], p[SOLID_H] = self.values["SIGMAY"], self.values["H"]
+        return J2_LINEAR, p, np.ascontiguousarray(self.D_elastic, dtype=float)

@@ -23,25 +23,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..registry import Param, register
-from .j2 import J2Linear, J2Plasticity  # noqa: F401  (importing registers J2_LINEAR too)
+from ..core.params import Param
+from ..kernels.layout import (RAMBERG_OSGOOD, SOLID_A, SOLID_G, SOLID_K, SOLID_MAXIT, SOLID_N,
+                              SOLID_TOL, SOLID_VECTOR)
+from .j2 import J2Plasticity
 
-__all__ = ["RambergOsgood"]
+__all__ = ["RambergOsgood", "safeguarded_newton"]
 
 
-@register("laws", "RAMBERG_OSGOOD")
 class RambergOsgood(J2Plasticity):
     """Von Mises plasticity whose uniaxial curve is Ramberg-Osgood's."""
 
     params = (
-        Param("E", float, bounds=(0.0, None), unit="stress", doc="Young's modulus (> 0)"),
+        Param("E", float, gt=0.0, unit="stress", doc="Young's modulus"),
         Param("NU", float, bounds=(-0.999, 0.4999), doc="Poisson's ratio"),
-        Param("SIGMA0", float, bounds=(0.0, None), unit="stress", doc="reference stress (> 0)"),
-        Param("ALPHA", float, bounds=(0.0, None), doc="yield offset coefficient (> 0)"),
+        Param("SIGMA0", float, gt=0.0, unit="stress", doc="reference stress"),
+        Param("ALPHA", float, gt=0.0, doc="yield offset coefficient"),
         Param("N", float, bounds=(1.0, None), doc="hardening exponent (>= 1)"),
     )
-    doc = "J2 plasticity, hardening from eps = s/E + ALPHA (SIGMA0/E) (s/SIGMA0)^N."
-    positive = ("E", "SIGMA0", "ALPHA")
 
     #: Newton tolerance on ln q (relative change of the equivalent stress) and iteration cap
     tol = 1e-13
@@ -49,13 +48,13 @@ class RambergOsgood(J2Plasticity):
 
     def __init__(self, **values):
         super().__init__(**values)
-        E, s0, a, n = (self.p[k] for k in ("E", "SIGMA0", "ALPHA", "N"))
+        E, s0, a, n = (self.values[k] for k in ("E", "SIGMA0", "ALPHA", "N"))
         self._a = np.log(a * s0 / E) - n * np.log(s0)      # ln peeq(q) = _a + N ln q
 
     def plastic_strain(self, q):
         """Equivalent plastic strain on the hardening curve at von Mises stress ``q`` (>= 0)."""
         with np.errstate(divide="ignore"):
-            return np.exp(self._a + self.p["N"] * np.log(np.asarray(q, dtype=float)))
+            return np.exp(self._a + self.values["N"] * np.log(np.asarray(q, dtype=float)))
 
     def yield_stress(self, peeq):
         return np.exp(self._log_yield(np.asarray(peeq, dtype=float)))
@@ -63,7 +62,7 @@ class RambergOsgood(J2Plasticity):
     def _log_yield(self, peeq):
         """``ln sigma_y(peeq)`` (``-inf`` at ``peeq = 0``)."""
         with np.errstate(divide="ignore"):
-            return (np.log(peeq) - self._a) / self.p["N"]
+            return (np.log(peeq) - self._a) / self.values["N"]
 
     def _return_map(self, q_tr, peeq_n):
         """Solve the consistency equation on the plastic points (m,), all at once.
@@ -76,7 +75,7 @@ class RambergOsgood(J2Plasticity):
         ``y = ln P``.  Each residual is convex, increasing, and its slope varies by at most a
         factor 2 on its interval, so both are well conditioned.
         """
-        G3, n = 3.0 * self.G, self.p["N"]
+        G3, n = 3.0 * self.G, self.values["N"]
         x_star = np.log(n * (q_tr + G3 * peeq_n) / (n + 1.0))
         with np.errstate(divide="ignore"):
             ln_pn = np.log(peeq_n)
@@ -119,7 +118,7 @@ class RambergOsgood(J2Plasticity):
     def _g_q(self, x, q_tr, peeq_n):
         """Residual in ``x = ln q``: ``ln peeq(q) - ln P(q)`` and its derivative
         (``+inf`` past the end of the return line, ``P <= 0``)."""
-        G3, n = 3.0 * self.G, self.p["N"]
+        G3, n = 3.0 * self.G, self.values["N"]
         q = np.exp(x)
         P = peeq_n + (q_tr - q) / G3
         pos = P > 0.0
@@ -130,13 +129,22 @@ class RambergOsgood(J2Plasticity):
     def _g_p(self, y, q_tr, peeq_n):
         """Residual in ``y = ln P``: ``y - ln peeq(q(P))`` and its derivative
         (``+inf`` past ``q = 0``)."""
-        G3, n = 3.0 * self.G, self.p["N"]
+        G3, n = 3.0 * self.G, self.values["N"]
         P = np.exp(y)
         q = q_tr - G3 * (P - peeq_n)
         pos = q > 0.0
         qs = np.where(pos, q, 1.0)
         return (np.where(pos, y - self._a - n * np.log(qs), np.inf),
                 np.where(pos, 1.0 + n * G3 * P / qs, np.inf))
+
+    def kernel_parameters(self):
+        if type(self) is not RambergOsgood:      # a subclass may change anything: NumPy
+            return None
+        p = np.zeros(SOLID_VECTOR)
+        p[SOLID_K], p[SOLID_G] = self.K, self.G
+        p[SOLID_A], p[SOLID_N] = self._a, self.values["N"]
+        p[SOLID_TOL], p[SOLID_MAXIT] = self.tol, self.max_iter
+        return RAMBERG_OSGOOD, p, np.ascontiguousarray(self.D_elastic, dtype=float)
 
 
 def safeguarded_newton(fun, lo, hi, tol, max_iter):

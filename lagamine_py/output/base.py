@@ -1,40 +1,34 @@
-"""What the step controller hands to writers, and the writer interface.
+"""The writer contract: what the step controller hands to writers, and when.
 
-Writers are observers: the controller calls ``start_run`` once, ``start_step`` per step,
-``increment`` after every *converged* increment (writers decide themselves about the output
-frequency through ``result.write_fields``), ``failed_attempt`` after each cut-back attempt, and
-``close`` at the end with the exit status and message.  Every writer flushes what it wrote
-before returning, so a killed run loses nothing that converged.
+Writers are observers.  The controller builds the run's writers -- those the steps' ``*OUTPUT,
+WRITERS=`` name (by default :data:`lagamine_py.output.DEFAULT_WRITERS`), and every writer whose
+class says :attr:`Writer.always` -- and calls, in this order:
+
+* ``start_run()`` once;
+* ``start_step(step_number, step)`` at the start of every step (``step`` is the
+  :class:`~lagamine_py.model.Step`, with its ``output`` request);
+* ``increment(result)`` after every *converged* increment of the steps whose ``*OUTPUT`` names
+  the writer (a writer decides itself about the field-output frequency through
+  ``result.write_fields``);
+* ``failed_attempt(attempt)`` after each failed attempt (the increment is then cut back);
+* ``close(status, message)`` once at the end, with the exit status and the message, whatever
+  happened.
+
+Every writer flushes what it wrote before returning from a hook, so a killed run loses nothing
+that converged.  Resuming a run (``lagamine-py run --restart``), writers are built with
+``append=True``: they keep what is in the output directory and drop what the interrupted run
+wrote at or after the first resumed increment.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
 import numpy as np
 
-from ..registry import Param
+from ..core.plugin import Plugin
+from ..elements.base import CellBlock, ContactPoints
 
-
-@dataclass
-class ContactPoints:
-    """All contact Gauss points of one contact pair (``*CONTACT``), flattened (g,)."""
-    name: str                     # "<surface>-><foundation>"
-    element: np.ndarray           # (g,) deck id of the solid element owning the face
-    face: np.ndarray              # (g,) face number 1..4
-    gauss: np.ndarray             # (g,) Gauss point number on the face, 1-based
-    x: np.ndarray                 # (g, 2) current position of the point P
-    p: np.ndarray
-    tau: np.ndarray
-    gap: np.ndarray               # signed distance d (> 0 penetration)
-    slip: np.ndarray              # accumulated slip
-    lam: np.ndarray
-    status: np.ndarray            # int8 OPEN/STICK/SLIP (lagamine_py.laws.base)
-    P: float                      # total normal force: integral of p over the current surface
-    T: float                      # total tangential force: integral of tau
-    A: float = float("nan")       # current area (length x thickness, or per radian) of points in contact
-    F: np.ndarray | None = None   # (2,) resultant force of the foundation on the body (sum of nodal forces)
+__all__ = ["Writer", "IncrementResult", "FailedAttempt", "CellBlock", "ContactPoints"]
 
 
 @dataclass
@@ -52,22 +46,47 @@ class IncrementResult:
     u: np.ndarray                 # (n, 2) displacement
     reaction: np.ndarray          # (n, 2) reaction force at constrained DOFs (0 elsewhere)
     reactions_by_set: dict[str, np.ndarray]     # target name -> (2,) summed RF1, RF2
-    cells: list[dict[str, Any]]   # per solid group: {"type", "ids", "conn", "stress" (e,q,4) Cauchy,
-                                  #   "peeq" (e,q), "nen"}
+    cells: list[CellBlock]        # one per solid group: topology, ids, conn, Gauss stress and PEEQ
     contacts: list[ContactPoints] = field(default_factory=list)
     foundations: dict[str, np.ndarray] = field(default_factory=dict)   # name -> (m,2) current points
     write_fields: bool = True     # this increment is due for field output (*OUTPUT FREQUENCY)
     residual_history: list[float] = field(default_factory=list)
 
 
-class Writer:
-    """Base of writer plugins (``lagamine_py.writers``)."""
+@dataclass
+class FailedAttempt:
+    """One failed attempt of an increment (the controller then cuts back and tries again)."""
+    step: int
+    step_name: str
+    increment: int                # the increment being attempted (1-based within the step)
+    time: float                   # total time at the start of the attempt
+    step_time: float
+    dt: float                     # the time increment attempted
+    reason: str                   # short ("iteration limit", "singular matrix" ...)
+    message: str                  # the full text
+    iterations: int
+    residual_history: list[float]
+    cutbacks: int                 # cut-backs of this increment so far, this one included
 
-    params: tuple[Param, ...] = ()
 
-    def __init__(self, outdir: Path, model, **options: Any):
+class Writer(Plugin):
+    """Base of writer plugins (entry-point group ``lagamine_py.writers``); see the module
+    docstring for the hooks.  Every hook has a do-nothing default: write the ones you need.
+
+    Parameters: ``outdir`` the run's output directory; ``model`` the
+    :class:`~lagamine_py.model.Model` (its ``name`` is the deck's stem); ``append`` resume into
+    what is there (a restart).
+    """
+
+    #: every run gets this writer, whatever ``*OUTPUT, WRITERS=`` says (the status file and the
+    #: log are how a run reports what happened)
+    always: bool = False
+    append: bool = False
+
+    def __init__(self, outdir: Path, model, append: bool = False):
         self.outdir = Path(outdir)
         self.model = model
+        self.append = bool(append)
 
     def start_run(self) -> None: ...
 
@@ -75,6 +94,7 @@ class Writer:
 
     def increment(self, result: IncrementResult) -> None: ...
 
-    def failed_attempt(self, info: dict[str, Any]) -> None: ...
+    def failed_attempt(self, attempt: FailedAttempt) -> None: ...
 
     def close(self, status: int, message: str) -> None: ...
+

@@ -7,25 +7,17 @@ increment on disk.
 """
 from __future__ import annotations
 
-from ..registry import register
 from .base import IncrementResult, Writer
-from .tables import resuming, trim_rows
+from .tables import trim_rows
 
 
-@register("writers", "DISPLACEMENTS")
 class DisplacementsWriter(Writer):
     """Nodal displacements at the end of each step (displacements.csv)."""
-
-    params = ()
-
-    def __init__(self, outdir, model, append: bool = False, **options):
-        super().__init__(outdir, model)
-        self.append = append
 
     def start_run(self) -> None:
         self.outdir.mkdir(parents=True, exist_ok=True)
         path = self.outdir / "displacements.csv"
-        self._resume = resuming(self) and path.exists()
+        self._resume = self.append and path.exists()
         self._fh = open(path, "a" if self._resume else "w")
         if not self._resume:
             self._fh.write("step,increment,time,node,x,y,u1,u2\n")

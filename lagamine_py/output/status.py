@@ -21,11 +21,9 @@ from __future__ import annotations
 import logging
 import threading
 from datetime import datetime, timezone
-from typing import Any
 
-from ..registry import register
-from .base import IncrementResult, Writer
-from .tables import CsvFiles, resuming
+from .base import FailedAttempt, IncrementResult, Writer
+from .tables import CsvFiles
 
 STA_HEADER = ("step", "step_name", "increment", "time", "dt", "iterations", "residual",
               "cutbacks", "failed", "reason")
@@ -33,7 +31,7 @@ LOGGER = "lagamine_py"
 LOG_FORMAT = "%(asctime)s %(levelname)-7s %(name)s: %(message)s"
 
 
-def _g(x: Any) -> str:
+def _g(x) -> str:
     return "" if x is None else repr(float(x))      # shortest exact text
 
 
@@ -52,36 +50,29 @@ class _ThreadFilter(logging.Filter):
         return record.thread == self.thread
 
 
-@register("writers", "STATUS")
 class StatusWriter(Writer):
     """<deck>.sta (one row per increment or failed attempt) and <deck>.log (messages)."""
 
-    params = ()
-
-    def __init__(self, outdir, model, **options):
-        super().__init__(outdir, model, **options)
-        self.append = bool(options.get("append", False))
+    always = True
+    _handler: logging.Handler | None = None
 
     def start_run(self) -> None:
-        deck = getattr(self.model, "name", None) or "run"
-        append = resuming(self)
+        deck = self.model.name or "run"
+        append = self.append
         self._sta_files = CsvFiles(self.outdir, {"sta": (f"{deck}.sta", STA_HEADER)}, append)
         self._log_fh = open(self.outdir / f"{deck}.log", "a" if append else "w")
         self.step_name = ""
         self._attach_handler()
-        heading = getattr(self.model, "heading", "")
-        n_nodes = len(getattr(self.model, "node_ids", ()))
-        n_elem = sum(len(b.ids) for b in getattr(self.model, "blocks", ()))
+        heading = self.model.heading
+        n_nodes = len(self.model.node_ids)
+        n_elem = sum(len(b.ids) for b in self.model.blocks)
         self._line(f"lagamine-py run of deck {deck} {'resumed' if append else 'started'} {_now()}: "
                    f"{n_nodes} nodes, {n_elem} elements"
                    + (f"; heading: {heading.strip()}" if heading and heading.strip() else ""))
 
-    def _sta_row(self, step, increment, row: list) -> None:
+    def _sta_row(self, step: int, increment: int, row: list) -> None:
         """Write one status row (dropping a resumed run's stale rows first) and flush."""
-        try:
-            self._sta_files.resume_at(int(step), int(increment))
-        except (TypeError, ValueError):
-            pass        # no usable (step, increment): trim on the next row that has one
+        self._sta_files.resume_at(int(step), int(increment))
         self._sta_files.writers["sta"].writerow(row)
         self._sta_files.flush()
 
@@ -102,7 +93,7 @@ class StatusWriter(Writer):
         self._log_fh.flush()
 
     def start_step(self, step_number: int, step) -> None:
-        self.step_name = getattr(step, "name", "") or ""
+        self.step_name = step.name or ""
         self._line(f"step {step_number} {self.step_name} starts")
 
     def increment(self, r: IncrementResult) -> None:
@@ -114,33 +105,21 @@ class StatusWriter(Writer):
                    f"{r.iterations} iterations, residual {r.residual:.3e}, cutbacks {r.cutbacks}"
                    + (f"; residuals {history}" if history else ""))
 
-    def failed_attempt(self, info: dict[str, Any]) -> None:
-        """One failed attempt (the controller cuts back and tries again).
-
-        ``info`` keys, all optional (as :mod:`lagamine_py.solver.steps` sends them): ``step``,
-        ``step_name``, ``increment`` (the one being attempted), ``time`` (total time at the start
-        of the attempt), ``dt`` (attempted), ``iterations``, ``residual`` (default: the last of
-        ``residual_history``), ``cutbacks``, ``reason`` (short, into the .sta), ``message``
-        (full text, into the log; default ``reason``).  The .sta ``time`` is the end time the
-        attempt aimed at, ``time + dt``, comparable with the converged rows.
-        """
-        reason = str(info.get("reason", "")).strip() or "unknown"
-        history = list(info.get("residual_history", ()))
-        residual = info.get("residual", history[-1] if history else None)
-        t0, dt = info.get("time"), info.get("dt")
-        t_end = None if t0 is None else float(t0) + (float(dt) if dt is not None else 0.0)
-        self._sta_row(info.get("step"), info.get("increment"),
-                      [info.get("step", ""), info.get("step_name", self.step_name),
-                       info.get("increment", ""), _g(t_end), _g(dt),
-                       info.get("iterations", ""), _g(residual),
-                       info.get("cutbacks", ""), "yes", reason])
-        text = str(info.get("message", "")).strip() or reason
-        self._line(f"step {info.get('step', '?')} increment {info.get('increment', '?')} attempt failed"
-                   + (f" (dt {float(dt):.6g})" if dt is not None else "") + f": {text}"
+    def failed_attempt(self, a: FailedAttempt) -> None:
+        """One failed attempt: a .sta row whose ``time`` is the end time the attempt aimed at
+        (``time + dt``, comparable with the converged rows) and a log line with the message."""
+        history = list(a.residual_history)
+        residual = history[-1] if history else None
+        self._sta_row(a.step, a.increment,
+                      [a.step, a.step_name or self.step_name, a.increment, _g(a.time + a.dt),
+                       _g(a.dt), a.iterations, _g(residual), a.cutbacks, "yes",
+                       a.reason.strip() or "unknown"])
+        text = a.message.strip() or a.reason
+        self._line(f"step {a.step} increment {a.increment} attempt failed (dt {a.dt:.6g}): {text}"
                    + (f"; residuals {' '.join(f'{x:.3e}' for x in history)}" if history else ""))
 
     def close(self, status: int, message: str) -> None:
-        if getattr(self, "_handler", None) is None:
+        if self._handler is None:
             return
         self._line(f"run finished {_now()} with exit status {status}: {message}")
         logger = logging.getLogger(LOGGER)

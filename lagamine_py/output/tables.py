@@ -22,8 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..laws.base import STATUS_NAMES
-from ..registry import register
+from ..core.status import STATUS_NAMES
 from .base import IncrementResult, Writer
 
 # the trailing ``contact`` column (the pair, as in contact_totals.csv) extends DECKS.md's list:
@@ -65,11 +64,6 @@ def trim_rows(path: Path, before: tuple[int, int]) -> None:
     with open(tmp, "w", newline="") as fh:
         csv.writer(fh, lineterminator="\n").writerows(kept)
     os.replace(tmp, path)
-
-
-def resuming(writer: Writer) -> bool:
-    """Whether a writer resumes a run: option ``append``, or ``restarting`` set by the controller."""
-    return bool(getattr(writer, "append", False) or getattr(writer, "restarting", False))
 
 
 class CsvFiles:
@@ -119,20 +113,14 @@ class CsvFiles:
 
 
 class _CsvWriter(Writer):
-    """Opens ``files`` = {attribute: (file name, header)} at start_run, closes them at close.
-
-    Option ``append`` (bool, default False), or the attribute ``restarting`` that the step
-    controller sets before ``start_run``: resume into existing files (see the module doc).
-    """
+    """Opens ``files`` = {attribute: (file name, header)} at start_run, closes them at close;
+    ``append``: resume into existing files (see the module doc)."""
 
     files: dict[str, tuple[str, tuple[str, ...]]] = {}
-
-    def __init__(self, outdir: Path, model, **options):
-        super().__init__(outdir, model, **options)
-        self.append = bool(options.get("append", False))
+    _csv: CsvFiles | None = None
 
     def start_run(self) -> None:
-        self._csv = CsvFiles(self.outdir, self.files, resuming(self))
+        self._csv = CsvFiles(self.outdir, self.files, self.append)
         for attr, out in self._csv.writers.items():
             setattr(self, attr, out)
 
@@ -147,15 +135,13 @@ class _CsvWriter(Writer):
         self._csv.flush()
 
     def close(self, status: int, message: str) -> None:
-        if getattr(self, "_csv", None) is not None:
+        if self._csv is not None:
             self._csv.close()
 
 
-@register("writers", "CONTACT")
 class ContactWriter(_CsvWriter):
     """contact.csv (per contact Gauss point) and contact_totals.csv (per contact pair)."""
 
-    params = ()
     files = {"_points": ("contact.csv", CONTACT_HEADER), "_totals": ("contact_totals.csv", TOTALS_HEADER)}
 
     def start_run(self) -> None:
@@ -163,8 +149,7 @@ class ContactWriter(_CsvWriter):
         self.enabled = True
 
     def start_step(self, step_number: int, step) -> None:
-        output = getattr(step, "output", None)
-        self.enabled = bool(getattr(output, "contact", True))
+        self.enabled = bool(step.output.contact)
 
     def increment(self, result: IncrementResult) -> None:
         self._begin(result)
@@ -186,11 +171,9 @@ def point_rows(head: list[str], cp) -> list[list[str]]:
     return [head + [*i, *v, s, cp.name] for i, v, s in zip(ids.tolist(), numbers.tolist(), status)]
 
 
-@register("writers", "REACTIONS")
 class ReactionsWriter(_CsvWriter):
     """reactions.csv: summed reaction force per imposed-displacement target, every increment."""
 
-    params = ()
     files = {"_rows": ("reactions.csv", REACTIONS_HEADER)}
 
     def increment(self, result: IncrementResult) -> None:

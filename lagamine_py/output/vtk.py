@@ -11,13 +11,14 @@ Parts (the ``part`` attribute of the PVD ``DataSet`` entries):
   positions, point data ``p``, ``tau``, ``gap``, ``slip``, ``lambda``, ``status``
   (0 open, 1 stick, 2 slip), ``element``, ``face``, ``gauss``, ``contact`` (pair index).
 * ``2`` foundations, ``OUT/<deck>_foundation_NNNN.vtu``: one poly-line per foundation through
-  its current points, each 3-point arc sampled with quadratic Lagrange interpolation.
+  its current points, each 3-point arc sampled with its own interpolation.
 
-Nodal stress and PEEQ are *extrapolated* from the Gauss points to the element nodes with the
-tensor Lagrange polynomials through the Gauss abscissae (bilinear for 2x2, biquadratic for 3x3:
-exact for fields the Gauss rule can represent), then averaged over the elements sharing the
-node.  Cell values are Gauss-weight means over the element's parent square (the exact integral
-mean for affine elements); the cell von Mises is the mean of the Gauss-point von Mises values.
+Nodal stress and PEEQ are *extrapolated* from the Gauss points to the element nodes by the
+element class's recovery (the polynomial through the Gauss values: bilinear for 2x2,
+biquadratic for 3x3, linear for a 3-point triangle; exact for fields the Gauss rule can
+represent), then averaged over the elements sharing the node.  Cell values are Gauss-weight
+means over the reference element (the exact integral mean for affine elements); the cell von
+Mises is the mean of the Gauss-point von Mises values.
 
 Option ``append`` (resuming a run): the existing PVD entries are kept up to, not including, the
 time of the first resumed increment, and the file counter continues after the last kept file.
@@ -34,78 +35,26 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from ..elements.shapes import gauss_quad, line_shape
-from ..laws.j2 import von_mises
-from ..registry import register
-from .base import IncrementResult, Writer
+from ..core.tensors import von_mises
+from ..foundation import Foundation
+from .base import CellBlock, IncrementResult, Writer
 
-# VTK cell types by number of element nodes (CPE8 node order = VTK_QUADRATIC_QUAD order).
-VTK_VERTEX, VTK_POLY_LINE, VTK_POLYGON = 1, 4, 7
-CELL_TYPES = {3: 5, 4: 9, 6: 22, 8: 23, 9: 28}     # other node counts: VTK_POLYGON
-
-# Parent coordinates of quadrilateral nodes: corners, mid-sides 5..8, centre (Q9).
-QUAD_NODES = np.array([(-1, -1), (1, -1), (1, 1), (-1, 1),
-                       (0, -1), (1, 0), (0, 1), (-1, 0), (0, 0)], float)
-
+VTK_VERTEX, VTK_POLY_LINE = 1, 4
 SAMPLES_PER_ARC = 16
 STRESS_NAMES = ("S11", "S22", "S33", "S12")
 
 
-def _lagrange_1d(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Lagrange basis through ``nodes`` (k,) evaluated at ``x`` (m,): (m, k)."""
-    diff = x[:, None, None] - nodes[None, None, :]              # (m, 1, k)
-    den = nodes[:, None] - nodes[None, :]                        # (k, k)
-    eye = np.eye(len(nodes), dtype=bool)
-    ratio = np.where(eye, 1.0, diff / np.where(eye, 1.0, den))   # (m, k, k): (x - x_j)/(x_i - x_j)
-    return ratio.prod(axis=-1)
-
-
-def extrapolation_matrix(nen: int, nq: int) -> np.ndarray | None:
-    """E (a, q) taking Gauss values of an ``n x n`` rule (``gauss_quad`` order) to the nodes.
-
-    None when the element is not a 4/8/9-node quadrilateral or ``nq`` is not a square: the
-    caller then uses the plain element average.
-    """
-    n = int(round(np.sqrt(nq)))
-    if nen not in (4, 8, 9) or n * n != nq:
-        return None
-    pts, _ = gauss_quad(n)
-    abscissae = np.polynomial.legendre.leggauss(n)[0]
-    # index of each Gauss point's xi and eta among the abscissae (robust to the rule's ordering)
-    ix = np.abs(pts[:, 0][:, None] - abscissae[None, :]).argmin(axis=1)
-    iy = np.abs(pts[:, 1][:, None] - abscissae[None, :]).argmin(axis=1)
-    nodes = QUAD_NODES[:nen]
-    Lx = _lagrange_1d(abscissae, nodes[:, 0])                   # (a, n)
-    Ly = _lagrange_1d(abscissae, nodes[:, 1])
-    return Lx[:, ix] * Ly[:, iy]
-
-
-def cell_weights(nq: int) -> np.ndarray:
-    """Gauss weights (q,) normalised to 1 (plain mean when ``nq`` is not a square)."""
-    n = int(round(np.sqrt(nq)))
-    if n * n != nq:
-        return np.full(nq, 1.0 / nq)
-    w = gauss_quad(n)[1]
-    return w / w.sum()
-
-
-def nodal_fields(n_nodes: int, cells: list[dict]) -> tuple[np.ndarray, np.ndarray]:
-    """Nodal stress (n, 4) and PEEQ (n,) from Gauss values, extrapolated then averaged.
-
-    Nodes outside every element get zeros.
-    """
+def nodal_fields(n_nodes: int, cells: list[CellBlock]) -> tuple[np.ndarray, np.ndarray]:
+    """Nodal stress (n, 4) and PEEQ (n,) from Gauss values, recovered at the element nodes
+    (the element class's :meth:`~lagamine_py.elements.base.Element.recovery_matrix`), then
+    averaged over the elements sharing the node.  Nodes outside every element get zeros."""
     total = np.zeros((n_nodes, 5))
     count = np.zeros(n_nodes)
     for c in cells:
-        conn = np.asarray(c["conn"])
-        e, nen = conn.shape
         gauss = _gauss_values(c)                                  # (e, q, 5)
-        E = extrapolation_matrix(nen, gauss.shape[1])
-        if E is None:
-            at_nodes = np.repeat(gauss.mean(axis=1, keepdims=True), nen, axis=1)
-        else:
-            at_nodes = np.einsum("aq,eqs->eas", E, gauss)
-        idx = conn.ravel()
+        E = c.element.recovery_matrix(gauss.shape[1])
+        at_nodes = np.einsum("aq,eqs->eas", E, gauss)
+        idx = np.asarray(c.conn).ravel()
         for k in range(5):  # one bincount per component, over all elements at once
             total[:, k] += np.bincount(idx, weights=at_nodes[..., k].ravel(), minlength=n_nodes)
         count += np.bincount(idx, minlength=n_nodes)
@@ -113,29 +62,10 @@ def nodal_fields(n_nodes: int, cells: list[dict]) -> tuple[np.ndarray, np.ndarra
     return mean[:, :4], mean[:, 4]
 
 
-def _gauss_values(c: dict) -> np.ndarray:
+def _gauss_values(c: CellBlock) -> np.ndarray:
     """Stack stress (e, q, 4) and peeq (e, q) into (e, q, 5)."""
-    stress = np.asarray(c["stress"], float)
-    peeq = c.get("peeq")
-    peeq = np.zeros(stress.shape[:2]) if peeq is None else np.asarray(peeq, float)
-    return np.concatenate([stress, peeq[..., None]], axis=-1)
-
-
-def sample_arcs(points: np.ndarray, per_arc: int = SAMPLES_PER_ARC) -> np.ndarray:
-    """Points (m, 2), m odd: arcs through (0,1,2), (2,3,4), ... sampled ``per_arc`` intervals each.
-
-    Each arc is the quadratic through its three points with the middle one at parameter 0
-    (the foundation's own interpolation).  Returns (per_arc * (m-1)/2 + 1, 2).
-    """
-    points = np.asarray(points, float)
-    if len(points) < 3:
-        return points.copy()
-    n_arc = (len(points) - 1) // 2
-    k = 2 * np.arange(n_arc)
-    arcs = np.stack([points[k], points[k + 2], points[k + 1]], axis=1)   # line_shape node order
-    N, _ = line_shape(3, np.linspace(-1.0, 1.0, per_arc + 1))
-    samples = np.einsum("sa,kai->ksi", N, arcs)                          # (arc, s, 2)
-    return np.concatenate([samples[:, :-1].reshape(-1, 2), samples[-1, -1:]], axis=0)
+    return np.concatenate([np.asarray(c.stress, float),
+                           np.asarray(c.peeq, float)[..., None]], axis=-1)
 
 
 def _vec3(a: np.ndarray) -> np.ndarray:
@@ -214,25 +144,20 @@ def read_pvd(path: Path) -> list[tuple[float, int, str]]:
             for d in root.iter("DataSet")]
 
 
-@register("writers", "VTK")
 class VtkWriter(Writer):
     """VTU files per output increment (bodies, contact points, foundations) and a PVD index."""
 
-    params = ()
-
-    def __init__(self, outdir, model, **options):
-        super().__init__(outdir, model, **options)
-        self.append = bool(options.get("append", False))
+    def __init__(self, outdir, model, append: bool = False):
+        super().__init__(outdir, model, append)
         self.fields: set[str] | None = None       # *OUTPUT, FIELDS= of the step; None: all
 
     def start_run(self) -> None:
         self.outdir.mkdir(parents=True, exist_ok=True)
-        self.deck = getattr(self.model, "name", None) or "run"
+        self.deck = self.model.name or "run"
         self.pvd_path = self.outdir / f"{self.deck}.pvd"
         self.counter = 0
         self.entries: list[tuple[float, int, str]] = []    # (time, part, file name)
-        resuming = self.append or bool(getattr(self, "restarting", False))   # set by the controller
-        self._pending_trim = resuming and self.pvd_path.exists()
+        self._pending_trim = self.append and self.pvd_path.exists()
         if self._pending_trim:
             self.entries = read_pvd(self.pvd_path)
         else:
@@ -265,7 +190,7 @@ class VtkWriter(Writer):
         self._write_pvd()
 
     def start_step(self, step_number: int, step) -> None:
-        fields = getattr(getattr(step, "output", None), "fields", ())
+        fields = step.output.fields
         self.fields = set(fields) if fields else None          # None: every field
 
     def _wants(self, name: str) -> bool:
@@ -281,8 +206,8 @@ class VtkWriter(Writer):
         vtk = _vtk()
 
         n = len(r.coords0)
-        conn = [np.asarray(c["conn"]) for c in r.cells]
-        types = [np.full(len(cn), CELL_TYPES.get(cn.shape[1], VTK_POLYGON)) for cn in conn]
+        conn = [np.asarray(c.conn) for c in r.cells]
+        types = [np.full(len(c.conn), c.element.vtk_cell) for c in r.cells]
         grid = _grid(_vec3(r.coords0), conn, types)
 
         want_s, want_peeq = self._wants("S"), self._wants("PEEQ")
@@ -299,17 +224,15 @@ class VtkWriter(Writer):
                 pd.AddArray(_array(von_mises(s_nod), "von_mises"))
             if want_peeq:
                 pd.AddArray(_array(peeq_nod, "PEEQ"))
-        node_ids = getattr(self.model, "node_ids", None)
-        if node_ids is not None and len(node_ids) == n:
-            pd.AddArray(_array(np.asarray(node_ids, np.int64), "node_id"))
+        pd.AddArray(_array(np.asarray(self.model.node_ids, np.int64), "node_id"))
 
         cd = grid.GetCellData()
         if r.cells:
             gauss = [_gauss_values(c) for c in r.cells]
-            w = [cell_weights(g.shape[1]) for g in gauss]
+            w = [c.element.gauss_weights() for c in r.cells]
             mean = np.concatenate([np.einsum("q,eqs->es", wk, g) for wk, g in zip(w, gauss)])
             vm = np.concatenate([np.einsum("q,eq->e", wk, von_mises(g[..., :4])) for wk, g in zip(w, gauss)])
-            ids = np.concatenate([np.asarray(c["ids"], np.int64) for c in r.cells])
+            ids = np.concatenate([np.asarray(c.ids, np.int64) for c in r.cells])
         else:
             mean, vm, ids = np.zeros((0, 5)), np.zeros(0), np.zeros(0, np.int64)
         cd.AddArray(_array(ids, "element_id"))
@@ -331,13 +254,17 @@ class VtkWriter(Writer):
         grid = _grid(_vec3(x), [np.arange(g)[:, None]], [np.full(g, VTK_VERTEX)])
         pd = grid.GetPointData()
 
-        def cat(attr, dtype=float):
-            return np.concatenate([np.asarray(getattr(cp, attr)).ravel() for cp in cps]).astype(dtype)
+        def cat(values, dtype=float):
+            return np.concatenate([np.asarray(v).ravel() for v in values]).astype(dtype)
 
-        for attr, name in (("p", "p"), ("tau", "tau"), ("gap", "gap"), ("slip", "slip"), ("lam", "lambda")):
-            pd.AddArray(_array(cat(attr), name))
-        for attr in ("status", "element", "face", "gauss"):
-            pd.AddArray(_array(cat(attr, np.int32), attr))
+        for name, values in (("p", [cp.p for cp in cps]), ("tau", [cp.tau for cp in cps]),
+                             ("gap", [cp.gap for cp in cps]), ("slip", [cp.slip for cp in cps]),
+                             ("lambda", [cp.lam for cp in cps])):
+            pd.AddArray(_array(cat(values), name))
+        for name, values in (("status", [cp.status for cp in cps]),
+                             ("element", [cp.element for cp in cps]),
+                             ("face", [cp.face for cp in cps]), ("gauss", [cp.gauss for cp in cps])):
+            pd.AddArray(_array(cat(values, np.int32), name))
         pair = np.concatenate([np.full(len(np.asarray(cp.p).ravel()), k, np.int32) for k, cp in enumerate(cps)])
         pd.AddArray(_array(pair, "contact"))
         names = vtk.vtkStringArray()
@@ -351,7 +278,7 @@ class VtkWriter(Writer):
     def _foundation_grid(self, r: IncrementResult):
         vtk = _vtk()
 
-        lines = [sample_arcs(p) for p in r.foundations.values()]
+        lines = [Foundation(p).sample(SAMPLES_PER_ARC) for p in r.foundations.values()]
         start = np.cumsum([0] + [len(s) for s in lines[:-1]])
         conn = [np.arange(s0, s0 + len(s))[None, :] for s0, s in zip(start, lines)]
         grid = _grid(_vec3(np.concatenate(lines)), conn, [np.full(1, VTK_POLY_LINE)] * len(lines))

@@ -3,13 +3,8 @@
 ``run(model, outdir, writers=None, restart=False, deck_path=None, progress=False) -> Outcome``
 is the entry point; see :mod:`.steps`.
 """
-from .linear import SingularMatrixError
-from .newton import (ConvergenceFailure, DivergingResidual, GroupFailure, IterationLimit,
-                     NotANumber)
 from .problem import Problem, build_problem
 from .restart import RestartError, restart_deck
 from .steps import Outcome, run
 
-__all__ = ["run", "Outcome", "build_problem", "Problem", "restart_deck", "RestartError",
-           "SingularMatrixError", "ConvergenceFailure", "IterationLimit", "DivergingResidual",
-           "NotANumber", "GroupFailure"]
+__all__ = ["run", "Outcome", "build_problem", "Problem", "restart_deck", "RestartError"]

@@ -10,7 +10,7 @@ has nothing to do with the stiffness (they blur the pivot-based singularity diag
 the first iteration, so boundary elements are not distorted alone by a jump of their nodes.
 
 Solvers: ``SPLU`` (SuperLU with the ``MMD_AT_PLUS_A`` ordering), ``PARDISO`` (MKL through
-``pypardiso``, registered only when it imports), ``AUTO`` (PARDISO above 5k DOFs when available,
+``pypardiso``, usable when it imports), ``AUTO`` (PARDISO above 5k DOFs when available,
 SPLU otherwise: with its analysis reused PARDISO is faster from 3-5k DOFs on press-slide
 tangents, see ``docs/performance.md``; below, SPLU costs milliseconds and names the unrestrained
 DOFs of a singular tangent by its pivots).  The default COLAMD ``spsolve`` is never used
@@ -25,36 +25,16 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._threads import pin_threads
-from ..registry import register
+from .. import registry
+from ..core.errors import SingularMatrixError
+from ..core.plugin import Plugin
+from ..core.threads import pin_threads
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
 AUTO_PARDISO_DOFS = 5_000     # measured crossover, see docs/performance.md
 PIVOT_RTOL = 1e-12          # |pivot| below this times max |K_ii| counts as zero
 SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a singular A
-
-
-class SingularMatrixError(ArithmeticError):
-    """The reduced tangent is singular.  ``dofs``: global DOFs that look unrestrained."""
-
-    def __init__(self, dofs, detail: str = "", node_ids=None):
-        self.dofs = np.asarray(sorted(set(int(d) for d in dofs)), dtype=np.int64)
-        self.detail = detail
-        super().__init__(self.describe(node_ids))
-
-    def describe(self, node_ids=None) -> str:
-        """Message naming the DOFs as ``node <id> x|y`` (deck ids when ``node_ids`` is given)."""
-        names = []
-        for d in self.dofs[:20]:
-            row, c = divmod(int(d), 2)
-            node = int(node_ids[row]) if node_ids is not None else row
-            names.append(f"node {node} {'xy'[c]}")
-        more = f" and {len(self.dofs) - 20} more" if len(self.dofs) > 20 else ""
-        what = ", ".join(names) + more if names else "(could not tell which)"
-        label = "node" if node_ids is not None else "node row"
-        text = f"the stiffness matrix is singular; unrestrained DOFs ({label}, direction): {what}"
-        return text + (f" [{self.detail}]" if self.detail else "")
 
 
 class FreeDofs:
@@ -99,25 +79,23 @@ class FreeDofs:
         return np.bincount(self.fc_row, weights=data[self.fc] * du_full[self.fc_col],
                            minlength=self.nfree)
 
-    def zero_diagonal_dofs(self, data: np.ndarray) -> np.ndarray:
-        """Free DOFs whose diagonal stiffness is zero or negligible."""
-        diag = np.zeros(len(self.free))
-        present = np.zeros(len(self.free), bool)
-        idx = np.searchsorted(self.free, self.diag_dof)
-        diag[idx] = np.abs(data[self.ff_diag])
-        present[idx] = True
-        scale = diag.max() if diag.size else 0.0
-        return self.free[(~present) | (diag <= PIVOT_RTOL * scale)]
 
+class LinearSolver(Plugin):
+    """Base of linear-solver plugins (entry-point group ``lagamine_py.solvers``), chosen by
+    ``*CONTROLS SOLVER=<name>`` or ``lagamine-py run --solver <name>``.
 
-class LinearSolver:
-    """Base of solver plugins: ``factor(A)`` once per Newton iteration, then ``solve(b)``.
-
-    ``A`` is a square CSR matrix (``K_ff``), possibly non-symmetric.  ``factor`` raises
-    :class:`SingularMatrixError` with the DOFs (indices into ``A``) that look unrestrained.
+    Built without arguments, once per step.  Newton calls ``factor(A)`` once per iteration,
+    then ``solve(b)``.  ``A`` is a square CSR matrix (``K_ff``, the free DOFs), generally
+    non-symmetric, whose structure is the same from one iteration to the next (a solver may
+    keep its symbolic analysis while it is).  ``factor`` (or ``solve``) raises
+    :class:`~lagamine_py.core.errors.SingularMatrixError` with the DOFs (indices into ``A``)
+    that look unrestrained: the increment is then cut back.
     """
 
-    params = ()
+    @classmethod
+    def unavailable(cls) -> str:
+        """Why the solver cannot run here ("" when it can): a missing optional package, say."""
+        return ""
 
     def factor(self, A: sp.csr_matrix) -> None:
         raise NotImplementedError
@@ -126,11 +104,8 @@ class LinearSolver:
         raise NotImplementedError
 
 
-@register("solvers", "SPLU")
 class SpluSolver(LinearSolver):
     """SuperLU (scipy splu) with the MMD_AT_PLUS_A ordering."""
-
-    params = ()
 
     def factor(self, A: sp.csr_matrix) -> None:
         # The CSR arrays of A are the CSC arrays of A^T: factor A^T without any conversion
@@ -174,7 +149,7 @@ def _suspects(A: sp.csr_matrix) -> np.ndarray:
 
 @functools.lru_cache(maxsize=None)
 def pardiso_available() -> bool:
-    from .._threads import prepare_openmp_env
+    from ..core.threads import prepare_openmp_env
     prepare_openmp_env()                    # before MKL's OpenMP runtime loads
     try:
         import pypardiso  # noqa: F401
@@ -198,11 +173,15 @@ class PardisoSolver(LinearSolver):
     each switch costs one new analysis.  ``symmetric=False`` forces the non-symmetric mode.
     """
 
-    params = ()
     SYM_RTOL = 1e-13
 
+    @classmethod
+    def unavailable(cls) -> str:
+        return "" if pardiso_available() else ("the optional package pypardiso is not "
+                                               "installed (pip install 'lagamine_py[pardiso]')")
+
     def __init__(self, symmetric: bool = True):
-        from .._threads import prepare_openmp_env
+        from ..core.threads import prepare_openmp_env
         prepare_openmp_env()
         import pypardiso
         pin_threads()
@@ -363,15 +342,8 @@ class _PardisoError(RuntimeError):
         self.code = code
 
 
-if pardiso_available():
-    register("solvers", "PARDISO")(PardisoSolver)
-
-
-@register("solvers", "AUTO")
 class AutoSolver(LinearSolver):
     """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise."""
-
-    params = ()
 
     def __init__(self):
         self.impl: LinearSolver | None = None
@@ -388,6 +360,10 @@ class AutoSolver(LinearSolver):
 
 
 def make_solver(name: str) -> LinearSolver:
-    """Instantiate the solver plugin ``name`` (AUTO, SPLU, PARDISO or a plugin's name)."""
-    from ..registry import get
-    return get("solvers", name)()
+    """Instantiate the solver plugin ``name`` (AUTO, SPLU, PARDISO or a plugin's name); KeyError
+    with the reason when it is unknown or cannot run here."""
+    cls = registry.get("solvers", name)
+    why = cls.unavailable()
+    if why:
+        raise KeyError(f"SOLVER={str(name).upper()}: {why}")
+    return cls()

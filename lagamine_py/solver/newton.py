@@ -27,47 +27,15 @@ from typing import Any
 
 import numpy as np
 
-from ..laws.base import SLIP, STICK
-from .linear import SingularMatrixError
+from ..core.errors import (ContactNotSettled, ConvergenceFailure, DivergingResidual,  # noqa: F401
+                           GroupFailure, IterationLimit, NotANumber, SingularMatrixError)
+from ..core.status import SLIP, STICK
 
 log = logging.getLogger("lagamine_py.solver")
 
 DIVERGED_REL = 1e10          # a relative residual above this is a blow-up
 FLOOR_FRACTION = 1e-6        # floor of the force scale, times the largest earlier scale
 _SLIP_NEG = 3                # flip-flop state code of a point slipping with tau < 0
-
-
-class ConvergenceFailure(Exception):
-    """Base of the typed failures of an increment; ``reason`` is short, ``history`` the
-    relative residuals of the attempt."""
-
-    reason = "failed"
-
-    def __init__(self, message: str, history: list[float] | None = None):
-        super().__init__(message)
-        self.history = list(history or [])
-
-
-class IterationLimit(ConvergenceFailure):
-    reason = "iteration limit"
-
-
-class DivergingResidual(ConvergenceFailure):
-    reason = "diverging residual"
-
-
-class NotANumber(ConvergenceFailure):
-    reason = "NaN"
-
-
-class ContactNotSettled(ConvergenceFailure):
-    """Frozen contact points (flip-flop control) disagree with the contact law at convergence."""
-    reason = "contact status did not settle"
-
-
-class GroupFailure(ConvergenceFailure):
-    """A group reported ``failure`` (negative Jacobian, return mapping...)."""
-    reason = "element failure"
 
 
 @dataclass

@@ -9,36 +9,18 @@ assembles them.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from importlib import import_module
 from typing import Any
 
 import numpy as np
 
-from .newton import GroupFailure
+from .. import kernels, registry
+from ..core.errors import CutbackRequest, GroupFailure
+from ..elements.contact import ContactGroup
+from ..elements.edges import PressureGroup, surface_faces
+from ..foundation import Foundation
 from .pattern import Pattern
 
 SOLID, CONTACT, PRESSURE = "solid", "contact", "pressure"
-KERNELS = ("AUTO", "NUMPY", "NUMBA")
-# KERNEL=AUTO uses the numba solid kernel from this many solid elements in the model.  Below it
-# the kernel saves less than it costs to load (numba import and cached machine code 0.4 s, a
-# first compile 9 s), and the small decks keep the NumPy reference's round-off: press_slide's
-# contact decisions turn on 1e-14 (19 increments and a cut-back instead of 16 with numba).
-AUTO_NUMBA_ELEMENTS = 2_000
-
-
-def numba_available() -> bool:
-    """True when the numba kernels import (numba installed and working); checked once."""
-    global _NUMBA
-    if _NUMBA is None:
-        try:
-            import_module("lagamine_py.elements.numba_kernels")
-            _NUMBA = True
-        except ImportError:
-            _NUMBA = False
-    return _NUMBA
-
-
-_NUMBA: bool | None = None
 
 
 @dataclass
@@ -81,43 +63,17 @@ class Problem:
         return [k for k, kd in enumerate(self.kinds) if kd == kind]
 
     def set_kernel(self, kernel: str) -> None:
-        """Choose how solid groups are computed: ``NUMPY`` (``compute``, the reference),
-        ``NUMBA`` (the fused compute + scatter kernel, ``compute_into``; raises KeyError when
-        numba is not installed) or ``AUTO`` (numba where it imports, for models of at least
-        :data:`AUTO_NUMBA_ELEMENTS` solid elements).  Either way a group the kernel does not
-        support (a law plugin, a non-solid group) goes through NumPy."""
-        kernel = str(kernel).upper()
-        if kernel not in KERNELS:
-            raise KeyError(f"KERNEL={kernel}: expected one of {', '.join(KERNELS)}")
-        if kernel == "NUMBA" and not numba_available():
-            raise KeyError("KERNEL=NUMBA needs the optional package numba "
-                           "(pip install 'lagamine_py[fast]')")
-        self.kernel = kernel
-        # contact groups (their fused numba kernel) by the same rule
+        """Choose NumPy or the numba kernels for every group (:func:`lagamine_py.kernels.use_numba`:
+        ``NUMPY``, ``NUMBA`` -- KeyError when numba is not installed -- or ``AUTO``); a group
+        uses a kernel where it has one (a built-in law, the COULOMB law on a foundation)."""
+        on = kernels.use_numba(kernel, self.solid_elements())
+        self.kernel = str(kernel).upper()
         for g in self.groups:
-            if hasattr(g, "set_kernel"):
-                g.set_kernel(self.wants_numba())
+            g.use_kernels(on)
 
     def solid_elements(self) -> int:
         """Number of solid elements of the model."""
         return sum(len(self.groups[k].dofs) for k in self.indices(SOLID))
-
-    def wants_numba(self) -> bool:
-        """The kernel setting asks for the numba kernels: ``NUMBA``, or ``AUTO`` on a model of at
-        least :data:`AUTO_NUMBA_ELEMENTS` solid elements (on a smaller one loading numba costs
-        more than it saves)."""
-        if self.kernel == "AUTO":
-            return self.solid_elements() >= AUTO_NUMBA_ELEMENTS
-        return self.kernel == "NUMBA"
-
-    def fused(self, k: int) -> bool:
-        """Whether group ``k`` is computed by its fused kernel under the current setting."""
-        if not self.wants_numba() or not hasattr(self.groups[k], "compute_into"):
-            return False
-        cache = self.__dict__.setdefault("_fused_support", {})
-        if k not in cache:
-            cache[k] = bool(numba_available() and self.groups[k].kernel_supported())
-        return cache[k]
 
     def evaluate(self, u_new: np.ndarray, u_old: np.ndarray, states: list[dict], ctx,
                  tangent: bool = True) -> Evaluation:
@@ -127,11 +83,12 @@ class Problem:
         force into their own global vector as they compute (``results[k].K`` is then None);
         the others return (e, nd, nd) blocks scattered afterwards, in group order.
 
-        Raises :class:`~lagamine_py.solver.newton.GroupFailure` when a group reports a failure
-        or raises an ``ArithmeticError`` (``ReturnMappingError``, floating-point errors)."""
+        Raises :class:`~lagamine_py.core.errors.GroupFailure` when a group reports a failure
+        or raises an ``ArithmeticError`` (a ``CutbackRequest``, floating-point errors); a
+        cut-back request's factor goes with it."""
         un, uo = u_new.reshape(-1, 2), u_old.reshape(-1, 2)
         results, vectors = [], {}
-        fused = [self.fused(k) for k in range(len(self.groups))]
+        fused = [g.fused for g in self.groups]
         data = np.zeros(self.pattern.nnz) if tangent and any(fused) else None
         for k, g in enumerate(self.groups):
             try:
@@ -142,7 +99,8 @@ class Problem:
                 else:
                     r = g.compute(un, uo, states[k], ctx, tangent)
             except ArithmeticError as exc:
-                raise GroupFailure(f"{self.group_names[k]}: {exc}") from exc
+                factor = exc.factor if isinstance(exc, CutbackRequest) else None
+                raise GroupFailure(f"{self.group_names[k]}: {exc}", factor=factor) from exc
             if r.failure:
                 raise GroupFailure(f"{self.group_names[k]}: {r.failure}")
             results.append(r)
@@ -210,11 +168,7 @@ def _surface(model, name: str):
 
 def build_problem(model) -> Problem:
     """Instantiate every group of ``model`` and the sparsity pattern."""
-    from ..registry import get
-    from ..foundation import Foundation
-    from ..elements.contact import ContactGroup
-    from ..elements.edges import PressureGroup, surface_faces
-
+    get = registry.get
     groups, kinds, names, blocks, advice = [], [], [], [], []
     laws = {name: get("laws", spec.law)(**spec.params) for name, spec in model.materials.items()}
     for blk in model.blocks:
@@ -270,20 +224,18 @@ PENALTY_RANGE = (5.0, 200.0)
 
 
 def penalty_advice(name, law, face_nodes, elements, model, laws, lookup) -> list[str]:
-    """Warnings when a contact law's KP or KT is far from 20-100 E/h on this surface."""
-    kp, kt = (getattr(law, k, None) for k in ("kp", "kt"))
-    if kp is None or len(face_nodes) == 0:
+    """Warnings when a penalty of the contact law (:meth:`ContactLaw.penalties`) that plays a
+    role is far from 20-100 E/h on this surface."""
+    penalties = {k: v for k, (v, plays) in law.penalties().items() if plays}
+    if not penalties or len(face_nodes) == 0:
         return []
     x = model.coords[face_nodes[:, :2]]
     h = float(np.median(np.linalg.norm(x[:, 1] - x[:, 0], axis=1)))
     block = model.blocks[lookup[int(elements[0])][0]]
     mat = laws.get(block.material) or laws.get(block.material.upper())
-    try:
-        E = float(mat.elastic_moduli()[0])
-    except (AttributeError, KeyError, TypeError):
-        return []
+    E = float(mat.elastic_moduli()[0])
     out = []
-    for label, k in (("KP", kp), ("KT", kt)):
+    for label, k in penalties.items():
         ratio = float(k) * h / E
         if not PENALTY_RANGE[0] <= ratio <= PENALTY_RANGE[1]:
             out.append(f"contact {name}: {label} = {float(k):.3g} is {ratio:.3g} E/h (E = {E:.4g}, "

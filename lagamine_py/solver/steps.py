@@ -22,19 +22,20 @@ from typing import Any
 
 import numpy as np
 
+from ..core.errors import ConvergenceFailure, SingularMatrixError
+from ..core.exits import EXIT_DIVERGED, EXIT_OK, EXIT_OTHER
+from ..core.params import ParamError, validate_params
 from ..elements.base import StepContext
-from ..output.base import IncrementResult
-from ..registry import ParamError, validate_params
+from ..model import CONTROL_PARAMS
+from .. import registry
+from ..output import DEFAULT_WRITERS, FailedAttempt, IncrementResult, default_writers
 from . import restart as rs
-from .controls import CONTROL_PARAMS
-from .linear import FreeDofs, SingularMatrixError, make_solver
+from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, step_loads
-from .newton import FLOOR_FRACTION, ConvergenceFailure, Settings, solve_increment
+from .newton import FLOOR_FRACTION, Settings, solve_increment
 from .problem import CONTACT, SOLID, Problem, build_problem, dload_surfaces
 
 log = logging.getLogger("lagamine_py.solver")
-
-EXIT_OK, EXIT_OTHER, EXIT_DIVERGED = 0, 1, 3
 
 
 @dataclass
@@ -62,9 +63,11 @@ def step_controls(step) -> dict[str, Any]:
 
 def run(model, outdir, writers=None, restart: bool = False, deck_path=None,
         progress: bool = False, problem: Problem | None = None) -> Outcome:
-    """Run every step of ``model``; write through ``writers`` (default:
-    :func:`lagamine_py.output.default_writers`, in append mode on restart).
+    """Run every step of ``model``, writing into ``outdir``.
 
+    ``writers``: a list of :class:`~lagamine_py.output.Writer` instances that observe every
+    step (a script's own); by default the writers the steps' ``*OUTPUT, WRITERS=`` name (or
+    the built-ins), each observing the steps that name it (:func:`run_writers`).
     ``restart=True`` resumes from ``outdir/restart.npz``.  Typed failures give an
     :class:`Outcome` with status 3; other exceptions close the writers (status 1) and propagate.
     """
@@ -73,15 +76,44 @@ def run(model, outdir, writers=None, restart: bool = False, deck_path=None,
     if problem is None:
         problem = build_problem(model)
     if writers is None:
-        from ..output import default_writers
-        writers = default_writers(outdir, model, append=restart)
+        writers = run_writers(outdir, model, append=restart)
+    else:
+        writers = {f"#{k}": w for k, w in enumerate(writers)}
+        for w in writers.values():
+            w.append = w.append or restart
     return Controller(model, problem, outdir, writers, deck_path, progress).run(restart)
 
 
+def run_writers(outdir: Path, model, append: bool = False) -> dict:
+    """The run's writers: every writer some step's ``*OUTPUT, WRITERS=`` names, the built-ins
+    for the steps that name none (:data:`~lagamine_py.output.DEFAULT_WRITERS`), and the writers
+    every run gets (``Writer.always``); a dict name -> writer."""
+    names: list[str] = []
+    for step in model.steps:
+        for name in step_writers(step):
+            if name not in names:
+                names.append(name)
+    names = names or list(DEFAULT_WRITERS)
+    names += [n for n in registry.names("writers")
+              if n not in names and registry.get("writers", n).always]
+    return dict(zip(names, default_writers(outdir, model, names, append=append)))
+
+
+def step_writers(step) -> tuple[str, ...]:
+    """The writers a step's output goes to: its ``*OUTPUT, WRITERS=``, else the built-ins."""
+    return tuple(step.output.writers) or DEFAULT_WRITERS
+
+
 class Controller:
-    def __init__(self, model, problem: Problem, outdir: Path, writers: list, deck_path=None,
+    """Runs the steps of a model.  ``writers``: name -> writer; a writer whose name starts with
+    ``#`` (given by a script) observes every step, the others the steps whose output names them
+    and, if their class is ``always``, every step."""
+
+    def __init__(self, model, problem: Problem, outdir: Path, writers: dict, deck_path=None,
                  progress: bool = False):
-        self.model, self.problem, self.outdir, self.writers = model, problem, outdir, writers
+        self.model, self.problem, self.outdir = model, problem, outdir
+        self.writers = dict(writers)
+        self.active = list(self.writers.values())      # the writers of the current step
         self.deck_path = str(deck_path) if deck_path is not None else ""
         self.progress = Progress(enabled=progress)
         n = problem.ndof
@@ -100,10 +132,9 @@ class Controller:
     # -- the run ---------------------------------------------------------------------------
     def run(self, restart: bool) -> Outcome:
         resume = self._load_restart() if restart else None
-        for w in self.writers:
-            w.restarting = restart           # writers that append on restart can read this
+        for w in self.writers.values():
             w.start_run()
-        for advice in getattr(self.problem, "warnings", ()):
+        for advice in self.problem.warnings:
             logging.getLogger("lagamine_py.advice").warning(advice)
         status, message = EXIT_OTHER, "interrupted"
         try:
@@ -122,7 +153,7 @@ class Controller:
             log.error(message)
         finally:
             self.progress.end()
-            for w in self.writers:
+            for w in self.writers.values():
                 w.close(status, message)
         return Outcome(status, message)
 
@@ -137,9 +168,7 @@ class Controller:
             solver = make_solver(controls["SOLVER"])
             self.problem.set_kernel(controls["KERNEL"])
         except KeyError as exc:
-            hint = " (SOLVER=PARDISO needs the optional package pypardiso)" \
-                if controls["SOLVER"] == "PARDISO" else ""
-            raise SetupError(f"step {si + 1} ({step.name}): {exc.args[0]}{hint}") from None
+            raise SetupError(f"step {si + 1} ({step.name}): {exc.args[0]}") from None
         T = float(step.period)
         if not T > 0:
             raise SetupError(f"step {si + 1} ({step.name}): the step time must be positive, got {T:g}")
@@ -157,7 +186,10 @@ class Controller:
         log.info("step %d %s: period %g, dt0 %g, %d constrained DOFs", si + 1, step.name, T,
                  step.dt0, len(loads.constrained))
         self._log_kernel(controls["KERNEL"])
-        for w in self.writers:
+        wanted = step_writers(step)
+        self.active = [w for name, w in self.writers.items()
+                       if name.startswith("#") or name in wanted or w.always]
+        for w in self.writers.values():
             w.start_step(si + 1, step)
         while T - t > 1e-12 * T:
             if inc >= step.max_increments:
@@ -178,7 +210,8 @@ class Controller:
                                          f"{t:g} of {T:g}: {reason}") from None
                     cutbacks += 1
                     self._report_failure(si, step, inc, t, dt_try, cutbacks, exc, reason)
-                    dt_try *= controls["CUTBACK"]
+                    asked = exc.factor if isinstance(exc, ConvergenceFailure) else None
+                    dt_try *= asked or controls["CUTBACK"]
                     if dt_try < step.dt_min or dt_try <= 1e-14 * T:     # (dt_min may be 0)
                         raise StepFailed(
                             f"step {si + 1} ({step.name}) could not converge: at step time "
@@ -203,7 +236,7 @@ class Controller:
         """Say how the solid groups are computed, once per change (a first use of the numba
         kernel compiles it for ~10 s: a user should know why the first increment waits)."""
         solids = self.problem.indices(SOLID)
-        fused = sum(self.problem.fused(k) for k in solids)
+        fused = sum(self.problem.groups[k].fused for k in solids)
         text = (f"numba kernel for {fused} of {len(solids)} solid group(s) (KERNEL={setting}; "
                 "compiled on first use, then cached)" if fused else f"NumPy (KERNEL={setting})")
         if text != self._kernel_text:
@@ -214,7 +247,7 @@ class Controller:
         model, problem = self.model, self.problem
         t_new = t + dt
         ctx = StepContext(nlgeom=bool(step.nlgeom), t_old=self.time_offset + t,
-                          t_new=self.time_offset + t_new, load_factor=1.0,
+                          t_new=self.time_offset + t_new,
                           foundation_old=loads.motions(model, t),
                           foundation_new=loads.motions(model, t_new))
         problem.set_pressures(loads.pressures(model, t_new))
@@ -256,25 +289,14 @@ class Controller:
             residual_history=list(conv.history))
         log.info("  converged: step %d increment %d, time %g, %d iterations, |R|/F %.3e",
                  si + 1, inc, result.time, conv.iterations, conv.residual)
-        for w in self.writers:
+        for w in self.active:
             w.increment(result)
         self.progress.update(si, step, t, T, inc, conv.iterations, len(self.model.steps))
 
-    def _cells(self) -> list[dict]:
-        cells = []
-        for k in self.problem.indices(SOLID):
-            g, blk, st = self.problem.groups[k], self.problem.blocks[k], self.states[k]
-            if hasattr(g, "cell_output"):
-                cells.append(g.cell_output(self.u.reshape(-1, 2), st))
-                continue
-            stress = st.get("stress")
-            peeq = st.get("peeq")
-            nq = stress.shape[1] if stress is not None else 1
-            cells.append({"type": blk.type, "ids": blk.ids, "conn": blk.conn,
-                          "stress": stress if stress is not None else np.zeros((len(blk.ids), nq, 4)),
-                          "peeq": peeq if peeq is not None else np.zeros((len(blk.ids), nq)),
-                          "nen": blk.conn.shape[1]})
-        return cells
+    def _cells(self) -> list:
+        u2 = self.u.reshape(-1, 2)
+        return [self.problem.groups[k].cell_block(u2, self.states[k])
+                for k in self.problem.indices(SOLID)]
 
     def _contacts(self, u2, ctx) -> list:
         return [self.problem.groups[k].points(u2, self.states[k], ctx)
@@ -286,16 +308,15 @@ class Controller:
         return f"{exc.reason}: {exc}"
 
     def _report_failure(self, si, step, inc, t, dt, cutbacks, exc, reason) -> None:
-        history = getattr(exc, "history", [])
+        history = exc.history if isinstance(exc, ConvergenceFailure) else []
         log.warning("  step %d increment %d: attempt with dt %g failed (%s); cutting back",
                     si + 1, inc + 1, dt, reason)
-        info = {"step": si + 1, "step_name": step.name, "increment": inc + 1,
-                "time": self.time_offset + t, "step_time": t, "dt": dt,
-                "reason": getattr(exc, "reason", "singular matrix"), "message": reason,
-                "iterations": max(len(history) - 1, 0), "residual_history": list(history),
-                "cutbacks": cutbacks}
-        for w in self.writers:
-            w.failed_attempt(info)
+        attempt = FailedAttempt(step=si + 1, step_name=step.name, increment=inc + 1,
+                                time=self.time_offset + t, step_time=t, dt=dt, reason=exc.reason,
+                                message=reason, iterations=max(len(history) - 1, 0),
+                                residual_history=list(history), cutbacks=cutbacks)
+        for w in self.active:
+            w.failed_attempt(attempt)
 
     # -- restart ---------------------------------------------------------------------------
     def _save_restart(self, si, loads: StepLoads, t, dt, inc, last=None) -> None:

@@ -1,6 +1,6 @@
-"""Scalar helpers shared by the numba kernels (``elements/numba_kernels.py``,
-``laws/coulomb_numba.py``), with NumPy's NaN semantics where the NumPy reference paths rely on
-them.  Imported only by those kernels, so numba stays an optional dependency."""
+"""Scalar helpers shared by the numba kernels (:mod:`.solid`, :mod:`.contact`), with NumPy's NaN
+semantics where the NumPy reference paths rely on them.  Imported only by those kernels, so numba
+stays an optional dependency."""
 from __future__ import annotations
 
 import math

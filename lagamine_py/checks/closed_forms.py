@@ -1,14 +1,8 @@
-"""Error measures of a run against closed forms: the deck's ``*CHECK`` requests.
+"""The built-in ``*CHECK`` types: error measures of a run against closed forms.
 
-A deck declares ``*CHECK, NAME=..., TYPE=...`` with ``KEY=VALUE`` data; the deck builder keeps
-them as ``Model.checks`` (dicts with ``name``, ``type``, ``params``, ``where``).
-:func:`evaluate_checks` computes each one from the run's output files only (the output contract
-of DECKS.md, read back with :mod:`lagamine_py.results`), so it works on a finished run, an
-archived reference or a sweep point alike.
-
-Each check type is a function ``f(params, run) -> dict`` registered in :data:`CHECKS` with
-:func:`register_check`; it returns ``measured`` and ``closed_form`` values (same keys where they
-compare), the relative ``errors`` per quantity and the headline ``error``.  Types:
+Each type is a :class:`~lagamine_py.checks.base.Check` plugin (entry points in ``setup.cfg``)
+whose ``evaluate`` returns ``measured`` and ``closed_form`` values, the relative ``errors`` per
+quantity and the headline ``error``.  Types:
 
 ``HERTZ`` (``R, E, NU``, ``SYMMETRY=1|2``, optional ``P``, ``X0``)
     Last increment of ``contact.csv``.  The least-squares fit of ``p^2 = p0^2 (1 - x^2/a^2)``
@@ -52,154 +46,29 @@ compare), the relative ``errors`` per quantity and the headline ``error``.  Type
     above, ``error = |p_reached - p_lim| / p_lim``.
 
 A check that cannot be evaluated (a file or a column missing, no contact) gets ``error`` NaN and
-a ``message`` saying why; it never raises.
+a ``message`` saying why (:func:`~lagamine_py.checks.base.evaluate_checks`).
 """
 from __future__ import annotations
 
 import math
-from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
-from scipy.integrate import trapezoid
-from scipy.optimize import brentq
 
-from .results import RunResults
+from ..core.params import Param
+from ..results import RunResults
+from .base import (Check, CheckError, contact_points, last_increment, one_contact, rel, result,
+                   rows, table)
 
-__all__ = ["CHECKS", "register_check", "evaluate_checks", "check_columns", "CheckError",
-           "hertz_closed_form", "fit_hertz", "stick_half_width"]
+__all__ = ["Hertz", "Cattaneo", "Coulomb", "Penetration", "UniaxialRambergOsgood", "Lame",
+           "LimitPressure", "hertz_closed_form", "fit_hertz", "stick_half_width",
+           "lame_radial_displacement"]
 
-CheckFunction = Callable[[dict[str, Any], RunResults], dict[str, Any]]
-CHECKS: dict[str, CheckFunction] = {}
-_REQUIRED = object()
-
-
-class CheckError(Exception):
-    """A check cannot be evaluated from the files at hand (the message says why)."""
-
-
-def register_check(name: str) -> Callable[[CheckFunction], CheckFunction]:
-    """Decorator: register ``f(params, run) -> dict`` as the check type ``name`` (upper-cased)."""
-    def deco(func: CheckFunction) -> CheckFunction:
-        CHECKS[name.upper()] = func
-        return func
-    return deco
-
-
-def evaluate_checks(model_checks: list[dict[str, Any]], outdir: Path) -> list[dict[str, Any]]:
-    """Evaluate every ``*CHECK`` of a model on the output directory ``outdir``.
-
-    Returns one dict per check: ``name``, ``type``, ``error`` (headline relative error, NaN when
-    it cannot be evaluated), ``measured``, ``closed_form``, ``errors`` (per quantity) and
-    ``message`` ("" when all went well).
-    """
-    run = RunResults(Path(outdir))
-    out = []
-    for chk in model_checks:
-        name, kind = str(chk.get("name", "")), str(chk.get("type", "")).upper()
-        entry = {"name": name or kind, "type": kind, "error": math.nan, "measured": {},
-                 "closed_form": {}, "errors": {}, "message": ""}
-        func = CHECKS.get(kind)
-        if func is None:
-            entry["message"] = f"unknown check type {kind!r} (known: {', '.join(sorted(CHECKS))})"
-        else:
-            try:
-                entry.update(func(_upper_keys(chk.get("params", {})), run))
-            except CheckError as exc:
-                entry["message"] = str(exc)
-            except (OSError, KeyError, IndexError, ValueError, ZeroDivisionError) as exc:
-                entry["message"] = f"{type(exc).__name__}: {exc}"
-        out.append(entry)
-    return out
-
-
-def check_columns(results: list[dict[str, Any]]) -> dict[str, Any]:
-    """Flat columns for a table row (the sweep): ``<name>_error``, ``<name>_<qty>`` (measured),
-    ``<name>_<qty>_cf`` (closed form) and ``<name>_message`` when there is one."""
-    row: dict[str, Any] = {}
-    for r in results:
-        n = r["name"]
-        row[f"{n}_error"] = r["error"]
-        for k, v in r.get("measured", {}).items():
-            row[f"{n}_{k}"] = v
-        for k, v in r.get("closed_form", {}).items():
-            row[f"{n}_{k}_cf"] = v
-        if r.get("message"):
-            row[f"{n}_message"] = r["message"]
-    return row
-
-
-# ---------------------------------------------------------------- helpers
-
-
-def _upper_keys(params: dict[str, Any]) -> dict[str, Any]:
-    return {str(k).upper(): v for k, v in dict(params or {}).items()}
-
-
-def _num(params: dict[str, Any], key: str, default: Any = _REQUIRED) -> float:
-    if key not in params:
-        if default is _REQUIRED:
-            raise CheckError(f"parameter {key} is missing")
-        return default
-    try:
-        return float(str(params[key]).replace("D", "E").replace("d", "e"))
-    except ValueError:
-        raise CheckError(f"parameter {key}={params[key]!r} is not a number") from None
-
-
-def _table(run: RunResults, name: str, columns: tuple[str, ...]) -> dict[str, np.ndarray]:
-    tab = run.table(name)
-    if not tab or len(tab.get("step", ())) == 0:
-        raise CheckError(f"{name} is missing or empty in {run.outdir}")
-    missing = [c for c in columns if c not in tab]
-    if missing:
-        raise CheckError(f"{name} has no column {', '.join(missing)}")
-    return tab
-
-
-def _rows(tab: dict[str, np.ndarray], mask: np.ndarray) -> dict[str, np.ndarray]:
-    return {k: v[mask] for k, v in tab.items()}
-
-
-def _last_increment(tab: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Rows of the last (step, increment) written (tables are written in time order)."""
-    mask = (tab["step"] == tab["step"][-1]) & (tab["increment"] == tab["increment"][-1])
-    return _rows(tab, mask)
-
-
-def _one_contact(tab: dict[str, np.ndarray], params: dict[str, Any],
-                 name: str = "contact_totals.csv") -> dict[str, np.ndarray]:
-    """Rows of contact pair ``CONTACT=`` if given, else of the first pair in the table.  The pair
-    is named ``SURFACE->FOUNDATION`` in the tables; ``CONTACT=`` may give the surface alone (a
-    deck's data line cannot hold ``->``), which must then name one pair."""
-    names = np.array([str(n).upper() for n in tab["contact"]])
-    want = str(params.get("CONTACT", names[0])).upper()
-    mask = names == want
-    if not mask.any():
-        mask = np.array([n.split("->")[0] == want for n in names])
-        pairs = sorted(set(names[mask]))
-        if len(pairs) > 1:
-            raise CheckError(f"CONTACT={want} names {len(pairs)} contact pairs in {name}: "
-                             f"{', '.join(pairs)}")
-    if not mask.any():
-        raise CheckError(f"{name} has no contact {want!r}")
-    return _rows(tab, mask)
-
-
-def _points(run: RunResults, columns: tuple[str, ...], params: dict[str, Any]) -> dict[str, np.ndarray]:
-    """contact.csv rows of one contact pair (``CONTACT=``, else the first), when the table names
-    its pairs; every row of a table written before it had the ``contact`` column."""
-    tab = _table(run, "contact.csv", columns)
-    return _one_contact(tab, params, "contact.csv") if "contact" in tab else tab
-
-
-def _rel(measured: float, exact: float) -> float:
-    return abs(measured - exact) / abs(exact) if exact != 0 else math.inf
-
-
-def _result(measured: dict, closed: dict, errors: dict, error: float | None = None) -> dict:
-    head = max(errors.values()) if error is None else error
-    return {"measured": measured, "closed_form": closed, "errors": errors, "error": float(head)}
+_CONTACT = Param("CONTACT", str, None, upper=True,
+                 doc="the contact pair, by its surface (default: the first pair)")
+_SYMMETRY = Param("SYMMETRY", float, 1.0, choices=(), bounds=(1.0, 2.0),
+                  doc="2 when the model is the half of a symmetric scene (forces doubled, "
+                      "the centre on the axis x = 0)")
 
 
 # ---------------------------------------------------------------- Hertz
@@ -230,43 +99,53 @@ def _moment_half_width(x: np.ndarray, p: np.ndarray) -> float:
     by ``x`` (one side or both: the ratio is the same)."""
     order = np.argsort(x)
     xs, ps = x[order], np.clip(p[order], 0.0, None)
+    from scipy.integrate import trapezoid      # scipy only when a check is evaluated
     m0 = trapezoid(ps, xs)
     return math.sqrt(4.0 * trapezoid(xs**2 * ps, xs) / m0) if m0 > 0 else math.nan
 
 
-def _centre(params: dict[str, Any], x: np.ndarray, p: np.ndarray) -> float:
-    """``X0``; 0 with ``SYMMETRY=2``; else the centroid of the pressure ``sum x p / sum p`` (the
+def _centre(x0: float | None, symmetry: float, x: np.ndarray, p: np.ndarray) -> float:
+    """``x0``; 0 with ``symmetry`` 2; else the centroid of the pressure ``sum x p / sum p`` (the
     Hertz and Cattaneo pressures are even about the centre; the largest ``p`` is not a safe
     centre, a penalty contact may peak anywhere near the top of the profile)."""
-    if "X0" in params:
-        return _num(params, "X0")
-    if _num(params, "SYMMETRY", 1.0) == 2.0:
+    if x0 is not None:
+        return x0
+    if symmetry == 2.0:
         return 0.0
     w = np.clip(p, 0.0, None)
     return float(np.sum(x * w) / np.sum(w)) if np.sum(w) > 0 else float(x[np.argmax(p)])
 
 
-@register_check("HERTZ")
-def check_hertz(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
-    R, E, nu = (_num(params, k) for k in ("R", "E", "NU"))
-    sym = _num(params, "SYMMETRY", 1.0)
-    pts = _last_increment(_points(run, ("x", "p"), params))
-    x, p = pts["x"].astype(float), pts["p"].astype(float)
-    xc = x - _centre(params, x, p)
-    a, p0 = fit_hertz(xc, p)
-    measured = {"a": a, "p0": p0, "a_moment": _moment_half_width(xc, p)}
-    totals = run.table("contact_totals.csv")
-    if totals and len(totals.get("P", ())):
-        measured["P"] = sym * abs(float(_last_increment(_one_contact(totals, params))["P"][-1]))
-    if "P" in params:
-        P = _num(params, "P")
-    elif "P" in measured:
-        P = measured["P"]       # displacement-driven: the closed form at the force reached
-    else:
-        raise CheckError("no P given and contact_totals.csv has no P column")
-    a_cf, p0_cf = hertz_closed_form(P, R, E, nu)
-    return _result(measured, {"a": a_cf, "p0": p0_cf, "a_moment": a_cf, "P": P},
-                   {"a": _rel(a, a_cf), "p0": _rel(p0, p0_cf)})
+class Hertz(Check):
+    """Hertz line contact of a cylinder on a rigid flat: half-width a and peak pressure p0."""
+
+    params = (Param("R", float, gt=0.0, unit="length", doc="cylinder radius"),
+              Param("E", float, gt=0.0, unit="stress", doc="Young's modulus"),
+              Param("NU", float, bounds=(-1.0, 0.5), doc="Poisson's ratio"),
+              Param("P", float, None, gt=0.0, unit="force/length",
+                    doc="force per unit length (default: the force the run reached)"),
+              Param("X0", float, None, unit="length", doc="the contact centre"),
+              _SYMMETRY, _CONTACT)
+
+    def evaluate(self, run: RunResults) -> dict[str, Any]:
+        pts = last_increment(contact_points(run, ("x", "p"), self.contact))
+        x, p = pts["x"].astype(float), pts["p"].astype(float)
+        xc = x - _centre(self.x0, self.symmetry, x, p)
+        a, p0 = fit_hertz(xc, p)
+        measured = {"a": a, "p0": p0, "a_moment": _moment_half_width(xc, p)}
+        totals = run.table("contact_totals.csv")
+        if totals and len(totals.get("P", ())):
+            measured["P"] = self.symmetry * abs(float(
+                last_increment(one_contact(totals, self.contact))["P"][-1]))
+        if self.values["P"] is not None:
+            P = self.values["P"]
+        elif "P" in measured:
+            P = measured["P"]       # displacement-driven: the closed form at the force reached
+        else:
+            raise CheckError("no P given and contact_totals.csv has no P column")
+        a_cf, p0_cf = hertz_closed_form(P, self.r, self.e, self.nu)
+        return result(measured, {"a": a_cf, "p0": p0_cf, "a_moment": a_cf, "P": P},
+                      {"a": rel(a, a_cf), "p0": rel(p0, p0_cf)})
 
 
 # ---------------------------------------------------------------- Cattaneo-Mindlin
@@ -320,24 +199,39 @@ def stick_half_width(x: np.ndarray, status: np.ndarray, ratio: np.ndarray, centr
     return 0.5 * float(right - left)
 
 
-@register_check("CATTANEO")
-def check_cattaneo(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
-    P, R, E, nu, phi, qratio = (_num(params, k) for k in ("P", "R", "E", "NU", "PHI", "QRATIO"))
-    sym = _num(params, "SYMMETRY", 1.0)
-    totals = _one_contact(_table(run, "contact_totals.csv", ("P", "T", "contact")), params)
-    pts = _points(run, ("x", "p", "tau", "status"), params)
+class Cattaneo(Check):
+    """Cattaneo-Mindlin partial slip: the stick half-width c at a tangential load ratio."""
+
+    params = (Param("P", float, gt=0.0, unit="force/length", doc="normal force per unit length"),
+              Param("R", float, gt=0.0, unit="length", doc="cylinder radius"),
+              Param("E", float, gt=0.0, unit="stress", doc="Young's modulus"),
+              Param("NU", float, bounds=(-1.0, 0.5), doc="Poisson's ratio"),
+              Param("PHI", float, gt=0.0, doc="friction coefficient"),
+              Param("QRATIO", float, bounds=(0.0, 1.0), doc="Q / (PHI P) where c is measured"),
+              Param("X0", float, None, unit="length", doc="the contact centre"),
+              _SYMMETRY, _CONTACT)
+
+    def evaluate(self, run: RunResults) -> dict[str, Any]:
+        return check_cattaneo(self, run)
+
+
+def check_cattaneo(chk: Cattaneo, run: RunResults) -> dict[str, Any]:
+    P, R, E, nu, phi, qratio = chk.values["P"], chk.r, chk.e, chk.nu, chk.phi, chk.qratio
+    sym = chk.symmetry
+    totals = one_contact(table(run, "contact_totals.csv", ("P", "T", "contact")), chk.contact)
+    pts = contact_points(run, ("x", "p", "tau", "status"), chk.contact)
     last = totals["step"][-1]
-    totals = _rows(totals, totals["step"] == last)
-    pts = _rows(pts, pts["step"] == last)
+    totals = rows(totals, totals["step"] == last)
+    pts = rows(pts, pts["step"] == last)
     ratios, widths, forces = [], [], []
     for inc, Q, Pn in zip(totals["increment"], np.abs(totals["T"]), np.abs(totals["P"])):
-        at = _rows(pts, pts["increment"] == inc)
+        at = rows(pts, pts["increment"] == inc)
         if len(at["x"]) == 0 or Pn == 0:
             continue                      # no field output at this increment
         x, p, tau = (at[k].astype(float) for k in ("x", "p", "tau"))
         with np.errstate(divide="ignore", invalid="ignore"):
             r = np.where(p > 0, np.abs(tau) / (phi * p), 1.0)
-        centre = _centre(params, x, p)
+        centre = _centre(chk.x0, sym, x, p)
         ratios.append(Q / (phi * Pn))
         widths.append(stick_half_width(x, at["status"], r, centre))
         forces.append(sym * Pn)
@@ -353,62 +247,91 @@ def check_cattaneo(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
     a = hertz_closed_form(Pn, R, E, nu)[0]
     c_cf = a * math.sqrt(1.0 - qratio)
     err = abs(c - c_cf) / a
-    return _result({"c": c, "P": Pn, "c_over_a": c / a},
+    return result({"c": c, "P": Pn, "c_over_a": c / a},
                    {"c": c_cf, "P": P, "c_over_a": c_cf / a, "a": a}, {"c": err}, err)
 
 
 # ---------------------------------------------------------------- Coulomb, penetration
 
 
-@register_check("COULOMB")
-def check_coulomb(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
-    phi, b, area = (_num(params, k) for k in ("PHI", "B", "A"))
-    totals = _last_increment(_one_contact(_table(run, "contact_totals.csv", ("P", "T", "contact")),
-                                          params))
-    P, T = abs(float(totals["P"][-1])), abs(float(totals["T"][-1]))
-    T_cf = phi * P + b * area
-    return _result({"T": T, "P": P}, {"T": T_cf}, {"T": _rel(T, T_cf)})
+class Coulomb(Check):
+    """A block sliding whole: the tangential force T = PHI P + B A."""
+
+    params = (Param("PHI", float, bounds=(0.0, None), doc="friction coefficient"),
+              Param("B", float, 0.0, bounds=(0.0, None), unit="stress", doc="adhesion"),
+              Param("A", float, 0.0, bounds=(0.0, None), unit="area",
+                    doc="contact area (per radian in axisymmetry; needed with B)"),
+              _CONTACT)
+
+    def evaluate(self, run: RunResults) -> dict[str, Any]:
+        totals = last_increment(one_contact(table(run, "contact_totals.csv", ("P", "T", "contact")),
+                                            self.contact))
+        P, T = abs(float(totals["P"][-1])), abs(float(totals["T"][-1]))
+        T_cf = self.phi * P + self.b * self.a
+        return result({"T": T, "P": P}, {"T": T_cf}, {"T": rel(T, T_cf)})
 
 
-@register_check("PENETRATION")
-def check_penetration(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
-    d_cf = _num(params, "P") / _num(params, "KP")
-    pts = _last_increment(_points(run, ("gap", "status"), params))
-    closed = np.array([str(s) != "open" for s in pts["status"]])
-    if not closed.any():
-        raise CheckError("no contact point is closed at the last increment")
-    gap = pts["gap"][closed].astype(float)
-    errs = np.abs(gap - d_cf) / abs(d_cf)
-    k = int(np.argmax(errs))
-    return _result({"gap": float(gap[k]), "gap_mean": float(gap.mean())},
-                   {"gap": d_cf, "gap_mean": d_cf}, {"gap": float(errs[k])})
+class Penetration(Check):
+    """A flat punch on the penalty foundation: the penetration d = P / KP."""
+
+    params = (Param("P", float, unit="stress", doc="contact pressure"),
+              Param("KP", float, gt=0.0, unit="stress/length", doc="normal penalty"),
+              _CONTACT)
+
+    def evaluate(self, run: RunResults) -> dict[str, Any]:
+        d_cf = self.values["P"] / self.kp
+        pts = last_increment(contact_points(run, ("gap", "status"), self.contact))
+        closed = np.array([str(s) != "open" for s in pts["status"]])
+        if not closed.any():
+            raise CheckError("no contact point is closed at the last increment")
+        gap = pts["gap"][closed].astype(float)
+        errs = np.abs(gap - d_cf) / abs(d_cf)
+        k = int(np.argmax(errs))
+        return result({"gap": float(gap[k]), "gap_mean": float(gap.mean())},
+                      {"gap": d_cf, "gap_mean": d_cf}, {"gap": float(errs[k])})
 
 
 # ---------------------------------------------------------------- bodies
 
 
 def _step_ends(run: RunResults) -> dict[str, np.ndarray]:
-    return _table(run, "displacements.csv", ("x", "y", "u1", "u2"))
+    return table(run, "displacements.csv", ("x", "y", "u1", "u2"))
 
 
-@register_check("UNIAXIAL_RO")
-def check_uniaxial_ro(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
-    E, s0, alpha, n, r0, h0 = (_num(params, k) for k in ("E", "SIGMA0", "ALPHA", "N", "R0", "H0"))
+class UniaxialRambergOsgood(Check):
+    """Homogeneous axisymmetric compression or tension against the Ramberg-Osgood curve."""
+
+    params = (Param("E", float, gt=0.0, unit="stress", doc="Young's modulus"),
+              Param("SIGMA0", float, gt=0.0, unit="stress", doc="reference stress"),
+              Param("ALPHA", float, gt=0.0, doc="yield offset coefficient"),
+              Param("N", float, bounds=(1.0, None), doc="hardening exponent"),
+              Param("R0", float, gt=0.0, unit="length", doc="initial radius"),
+              Param("H0", float, gt=0.0, unit="length", doc="initial height"),
+              Param("NSET", str, None, upper=True,
+                    doc="node set whose RF2 is the force (default: the largest |RF2|)"))
+
+    def evaluate(self, run: RunResults) -> dict[str, Any]:
+        return check_uniaxial_ro(self, run)
+
+
+def check_uniaxial_ro(chk: UniaxialRambergOsgood, run: RunResults) -> dict[str, Any]:
+    E, s0, alpha, n, r0, h0 = chk.e, chk.sigma0, chk.alpha, chk.n, chk.r0, chk.h0
+    from scipy.optimize import brentq           # scipy only when a check is evaluated
     disp = _step_ends(run)
-    reac = _table(run, "reactions.csv", ("nset", "RF2"))
+    reac = table(run, "reactions.csv", ("nset", "RF2"))
     nsets = np.array([str(s).upper() for s in reac["nset"]], dtype=object)
-    if "NSET" in params:
-        want = str(params["NSET"]).upper()
+    if chk.nset is not None:
+        want = chk.nset
     else:
-        last = _last_increment(reac)
+        last = last_increment(reac)
         want = str(last["nset"][int(np.argmax(np.abs(last["RF2"])))]).upper()
-    reac = _rows(reac, nsets == want)
+    reac = rows(reac, nsets == want)
     if len(reac["step"]) == 0:
         raise CheckError(f"reactions.csv has no node set {want}")
-    rows = []
+    found = []
     for step in np.unique(disp["step"]):
-        d = _rows(disp, disp["step"] == step)
-        r_ = _rows(reac, reac["step"] == step)
+        d = rows(disp, disp["step"] == step)
+        r_ = rows(reac, reac["step"] == step)
         if len(r_["step"]) == 0:
             continue
         F = abs(float(r_["RF2"][-1]))
@@ -424,15 +347,15 @@ def check_uniaxial_ro(params: dict[str, Any], run: RunResults) -> dict[str, Any]
         eps_cf = _ro_strain(s, E, s0, alpha, n)
         # the stress on the curve at the measured strain: monotone in s, below E eps
         s_cf = brentq(lambda t: _ro_strain(t, E, s0, alpha, n) - eps, 0.0, E * eps) if eps > 0 else 0.0
-        rows.append((int(step), s, eps, eps_cf, s_cf, r))
-    if not rows:
+        found.append((int(step), s, eps, eps_cf, s_cf, r))
+    if not found:
         raise CheckError(f"no step has both displacements.csv rows and reactions of {want}")
-    errs = [_rel(e, ecf) for _, _, e, ecf, _, _ in rows]
+    errs = [rel(e, ecf) for _, _, e, ecf, _, _ in found]
     k = int(np.argmax(errs))
-    step, s, eps, eps_cf, s_cf, r = rows[k]
-    return _result({"stress": s, "strain": eps, "radius": r, "step": step},
-                   {"strain": eps_cf, "stress": s_cf},
-                   {"strain": errs[k], "stress": _rel(s, s_cf)}, errs[k])
+    step, s, eps, eps_cf, s_cf, r = found[k]
+    return result({"stress": s, "strain": eps, "radius": r, "step": step},
+                  {"strain": eps_cf, "stress": s_cf},
+                  {"strain": errs[k], "stress": rel(s, s_cf)}, errs[k])
 
 
 def _ro_strain(s: float, E: float, s0: float, alpha: float, n: float) -> float:
@@ -447,24 +370,47 @@ def lame_radial_displacement(r, P: float, A: float, B: float, E: float, nu: floa
     return (1.0 + nu) * P * A**2 / (E * (B**2 - A**2)) * ((1.0 - 2.0 * nu) * r + B**2 / r)
 
 
-@register_check("LAME")
-def check_lame(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
-    P, A, B, E, nu = (_num(params, k) for k in ("P", "A", "B", "E", "NU"))
+class Lame(Check):
+    """Elastic thick cylinder under internal pressure: radial displacement of both surfaces."""
+
+    params = (Param("P", float, unit="stress", doc="internal pressure"),
+              Param("A", float, gt=0.0, unit="length", doc="inner radius"),
+              Param("B", float, gt=0.0, unit="length", doc="outer radius"),
+              Param("E", float, gt=0.0, unit="stress", doc="Young's modulus"),
+              Param("NU", float, bounds=(-1.0, 0.5), doc="Poisson's ratio"))
+
+    def evaluate(self, run: RunResults) -> dict[str, Any]:
+        return check_lame(self, run)
+
+
+def check_lame(chk: Lame, run: RunResults) -> dict[str, Any]:
+    P, A, B, E, nu = chk.values["P"], chk.a, chk.b, chk.e, chk.nu
     disp = _step_ends(run)
-    d = _rows(disp, disp["step"] == disp["step"][-1])
+    d = rows(disp, disp["step"] == disp["step"][-1])
     x = d["x"].astype(float)
     tol = 1e-9 * max(abs(B), 1.0)
     u_in = float(d["u1"][np.abs(x - x.min()) <= tol].mean())
     u_out = float(d["u1"][np.abs(x - x.max()) <= tol].mean())
     ui_cf, uo_cf = (float(u) for u in lame_radial_displacement([A, B], P, A, B, E, nu))
-    return _result({"u_inner": u_in, "u_outer": u_out}, {"u_inner": ui_cf, "u_outer": uo_cf},
-                   {"u_inner": _rel(u_in, ui_cf), "u_outer": _rel(u_out, uo_cf)})
+    return result({"u_inner": u_in, "u_outer": u_out}, {"u_inner": ui_cf, "u_outer": uo_cf},
+                  {"u_inner": rel(u_in, ui_cf), "u_outer": rel(u_out, uo_cf)})
 
 
-@register_check("LIMIT_PRESSURE")
-def check_limit_pressure(params: dict[str, Any], run: RunResults) -> dict[str, Any]:
-    P, sy, A, B = (_num(params, k) for k in ("P", "SIGMAY", "A", "B"))
-    period = _num(params, "PERIOD", 1.0)
+class LimitPressure(Check):
+    """A perfectly plastic thick cylinder: the pressure reached against Hill's limit pressure."""
+
+    params = (Param("P", float, gt=0.0, unit="stress", doc="pressure at the end of the ramp"),
+              Param("SIGMAY", float, gt=0.0, unit="stress", doc="yield stress"),
+              Param("A", float, gt=0.0, unit="length", doc="inner radius"),
+              Param("B", float, gt=0.0, unit="length", doc="outer radius"),
+              Param("PERIOD", float, 1.0, gt=0.0, doc="time over which the pressure ramps to P"))
+
+    def evaluate(self, run: RunResults) -> dict[str, Any]:
+        return check_limit_pressure(self, run)
+
+
+def check_limit_pressure(chk: LimitPressure, run: RunResults) -> dict[str, Any]:
+    P, sy, A, B, period = chk.values["P"], chk.sigmay, chk.a, chk.b, chk.period
     stas = sorted(run.outdir.glob("*.sta"))
     if not stas:
         raise CheckError(f"no .sta file in {run.outdir}")
@@ -478,5 +424,5 @@ def check_limit_pressure(params: dict[str, Any], run: RunResults) -> dict[str, A
     if P <= p_lim:
         err = 0.0 if finished else (p_lim - p_reached) / p_lim
     else:
-        err = _rel(p_reached, p_lim)
-    return _result({"p": p_reached}, {"p": p_lim}, {"p": err}, err)
+        err = rel(p_reached, p_lim)
+    return result({"p": p_reached}, {"p": p_lim}, {"p": err}, err)

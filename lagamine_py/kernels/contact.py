@@ -1,8 +1,8 @@
-"""Numba kernels of the contact computation: the COULOMB update, the foundation projection, and
-the whole contact group fused.
+"""Numba kernels of the contact computation: the foundation projection, and the whole contact
+group with the COULOMB law fused.
 
 The optional fast path (``pip install lagamine_py[fast]``) of
-:meth:`lagamine_py.laws.coulomb.Coulomb.update`, :meth:`lagamine_py.foundation.Foundation.project`
+:meth:`lagamine_py.foundation.Foundation.project`
 and :meth:`lagamine_py.elements.contact.ContactGroup.compute` (with the COULOMB law against a
 Foundation): one loop over the contact points doing, point by point, exactly what the NumPy
 code does array by array (same formulas in the same order, same branches, derivatives known to
@@ -17,7 +17,7 @@ component, ``J`` face DOF ``2a + i``; ``k`` candidate intersection of the projec
 per arc, then the two end half-lines).
 
 Importing this module imports numba: callers import it lazily
-(``lagamine_py.laws.coulomb._numba_kernels``) and fall back to NumPy on ImportError.
+(through :func:`lagamine_py.kernels.module`) and fall back to NumPy without numba.
 ``cache=True`` keeps the machine code on disk; the first call compiles.
 """
 from __future__ import annotations
@@ -27,36 +27,24 @@ import math
 import numpy as np
 from numba import njit
 
-from ..numba_scalars import nmax as _nmax, nmin as _nmin
+from ..core.status import OPEN, SLIP, STICK
+from . import calls
+from .layout import (COULOMB_B as _B, COULOMB_CLASSICAL as _CLASSICAL, COULOMB_HB as _HB,
+                     COULOMB_HPHI as _HPHI, COULOMB_K1 as _K1, COULOMB_K2 as _K2,
+                     COULOMB_KP as _KP, COULOMB_KT as _KT, COULOMB_NK as _NK,
+                     COULOMB_PHI as _PHI, COULOMB_PREDICTOR as _PREDICTOR, COULOMB_SNAP as _SNAP,
+                     TAN_KEYS)
+from .scalars import nmax as _nmax, nmin as _nmin
 
-__all__ = ["coulomb_update", "TAN_KEYS", "project_points", "law_vector", "contact_group"]
+__all__ = ["project_points", "contact_group", "TAN_KEYS", "ON_SURFACE_RTOL"]
 
 _JIT = dict(cache=True, fastmath=False, error_model="numpy", nogil=True)
 
-OPEN, STICK, SLIP = 0, 1, 2          # lagamine_py.laws.base
-_ON_SURFACE_RTOL = 1e-10             # lagamine_py.laws.coulomb
+#: a point with f >= -this (relative) counts as on the yield surface (the value of
+#: ``lagamine_py.laws.coulomb.ON_SURFACE_RTOL``, which the twin test checks)
+ON_SURFACE_RTOL = 1e-10
+_ON_SURFACE_RTOL = ON_SURFACE_RTOL
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
-
-#: rows of the tangent array returned by :func:`coulomb_update`
-TAN_KEYS = ("lam_d", "tau_d", "lam_du", "tau_du", "lam_v", "tau_v", "lam_tau", "tau_tau",
-            "lam_lam", "tau_lam", "p_d", "p_u", "tau_u", "lam_u")
-# layout of the law vector
-_KP, _KT, _PHI, _B, _HPHI, _HB, _CLASSICAL, _PREDICTOR, _K1, _K2, _NK, _SNAP = range(12)
-
-
-def law_vector(law) -> np.ndarray:
-    """The parameters of a :class:`~lagamine_py.laws.coulomb.Coulomb` law as a (12,) vector."""
-    v = np.zeros(12)
-    v[_KP], v[_KT], v[_PHI], v[_B], v[_HPHI], v[_HB] = (law.kp, law.kt, law.phi, law.b,
-                                                         law.hphi, law.hb)
-    v[_CLASSICAL] = law.indicator == "CLASSICAL"
-    v[_PREDICTOR] = law.indicator == "PREDICTOR"
-    kinks = law._kinks
-    v[_NK] = len(kinks)
-    v[_K1] = kinks[0] if len(kinks) > 0 else np.inf
-    v[_K2] = kinks[1] if len(kinks) > 1 else np.inf
-    v[_SNAP] = law._may_snap_back
-    return v
 
 
 # --------------------------------------------------------------------------------------------
@@ -259,22 +247,6 @@ def _coulomb_point(lv, po, tau_old, lam_old, slip_old, dissip_old, status_old, d
             dissip_old + ddis, status, bad)
 
 
-@njit(**_JIT)
-def _coulomb(lv, p_old, tau_old, lam_old, slip_old, dissip_old, status_old, d, du, dv, hold,
-             has_hold, p_new, tau_new, lam_new, slip_new, dissip_new, status_new, tan):
-    """:func:`_coulomb_point` for every point; returns the number of snap-backs."""
-    bad = 0
-    t = np.empty(14)
-    for g in range(p_old.shape[0]):
-        (p_new[g], tau_new[g], lam_new[g], slip_new[g], dissip_new[g], status_new[g],
-         snap) = _coulomb_point(lv, p_old[g], tau_old[g], lam_old[g], slip_old[g],
-                                dissip_old[g], status_old[g], d[g], du[g], dv[g],
-                                hold[g] if has_hold else -1, t)
-        bad += snap
-        tan[:, g] = t
-    return bad
-
-
 _NO_HOLD = np.full(0, -1, np.int64)
 
 
@@ -283,29 +255,6 @@ def _arr(x, dtype=float):
     are compiled for (a read-only or broadcast input would compile another specialisation)."""
     a = np.ascontiguousarray(x, dtype)
     return a if a.flags.writeable else a.copy()
-
-
-def coulomb_update(lv, state, d, du, dv, frozen):
-    """``Coulomb._update`` through the kernel: ``(new_state, tan, n_snap_back)``.
-
-    ``lv`` the law vector (:func:`law_vector`); arrays (g,) (``d``, ``du``, ``dv`` broadcast).
-    The tangent arrays are rows of one (14, g) array."""
-    c = _arr
-    p_old = c(state["p"], float)
-    g = p_old.shape[0]
-    d, du, dv = (c(np.broadcast_to(np.asarray(x, float), (g,))) for x in (d, du, dv))
-    hold = _NO_HOLD if frozen is None else c(np.broadcast_to(frozen, (g,)), np.int64)
-    out = np.empty((5, g))
-    status = np.empty(g, np.int8)
-    tan = np.empty((len(TAN_KEYS), g))
-    bad = _coulomb(lv, p_old, c(state["tau"], float), c(state["lam"], float),
-                   c(state["slip"], float), c(state["dissip"], float),
-                   c(state["status"], np.int8), d, du, dv, hold, frozen is not None,
-                   out[0], out[1], out[2], out[3], out[4], status, tan)
-    new_state = dict(state)
-    new_state.update(p=out[0], tau=out[1], lam=out[2], slip=out[3], dissip=out[4],
-                     status=status)
-    return new_state, dict(zip(TAN_KEYS, tan)), bad
 
 
 # --------------------------------------------------------------------------------------------
@@ -422,33 +371,27 @@ def _project(A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, c, P, e_u,
             dd_de[g, 0] = dd_de[g, 1] = -0.0
 
 
-def _arcs(found_obj):
-    """The arc coefficients ``A, B, C`` (j, 2) of a foundation as contiguous arrays (``A`` is a
-    strided view of the points), kept on the foundation."""
-    arcs = found_obj.__dict__.get("_kernel_arcs")
-    if arcs is None:
-        arcs = found_obj._kernel_arcs = tuple(_arr(x) for x in (found_obj.A, found_obj.B,
-                                                                 found_obj.C))
-    return arcs
-
-
-def project_points(found_obj, P, e_u, c):
+def project_points(chain, P, e_u, c):
     """``Foundation.project`` through the kernel: the fields of a
-    :class:`~lagamine_py.foundation.Projection` as a dict."""
+    :class:`~lagamine_py.foundation.Projection` as a dict.
+
+    ``chain``: the foundation's arrays, ``Foundation.kernel_arrays()``: ``A, B, C`` (j, 2) the
+    arc coefficients, the start and end half-lines' origins and directions (2,) and the
+    tolerances ``s_tol``, ``cos_min``."""
+    calls["projection"] += 1
+    A, B, C, so, st, eo, et, s_tol, cos_min = chain
     g = P.shape[0]
     P = _arr(P, float)
     e_u = _arr(e_u, float)
     w = np.stack([-e_u[:, 1], e_u[:, 0]], axis=-1)
-    (so, st), (eo, et) = found_obj._start, found_obj._end
     wt_start, wt_end = w @ st, w @ et
     d = np.empty(g)
     found = np.empty(g, bool)
     arc = np.empty(g, np.int64)
     s = np.empty(g)
     Q, tangent, dd_dP, dd_de = (np.empty((g, 2)) for _ in range(4))
-    _project(*_arcs(found_obj), so, st, eo, et, found_obj.s_tol,
-             found_obj.cos_min, _arr(c, float), P, e_u, wt_start, wt_end, d,
-             found, arc, s, Q, tangent, dd_dP, dd_de)
+    _project(A, B, C, so, st, eo, et, s_tol, cos_min, _arr(c, float), P, e_u, wt_start, wt_end,
+             d, found, arc, s, Q, tangent, dd_dP, dd_de)
     normal = np.empty((g, 2))
     normal[:, 0] = -tangent[:, 1]
     normal[:, 1] = tangent[:, 0]
@@ -735,28 +678,36 @@ def _faces(u_old, u_new, face_nodes, x0, xo, xn, cached, cxo, cco, co):
     return same
 
 
-def contact_group(grp, kernels_static, u_new, u_old, co, cn, nsub, theta, geo, tangent, state,
-                  frozen, lv, cache):
-    """:func:`_contact` for a :class:`~lagamine_py.elements.contact.ContactGroup`.
-
-    ``nsub`` the sub-intervals (None: ``grp.substeps_for``, from the face positions);
-    ``cache`` None or the start configuration and its penetration ``(xo, co, d_start)``, reused
-    when the start positions are the same.  Returns ``(new_state, f, K, outside, start,
-    (n_snap_back, n_degenerate, n_nonfinite))`` with ``start`` None when the cache was reused,
-    else the new ``(xo, co, d_start)``."""
-    N, dN, W, t0, P0, At, RAt, AP0 = kernels_static
-    fd = grp.foundation
-    (so, st), (eo, et) = fd._start, fd._end
-    c = _arr
-    ng, nf, nd = grp.ng, grp.nf, grp.nd
-    xo, xn = np.empty((2, nf, nd // 2, 2))
-    co, cn = c(co, float), c(cn, float)
+def face_positions(u_old, u_new, face_nodes, x0, cache, co):
+    """Face node positions ``xo``, ``xn`` (f, a, 2) at the start and end of the increment
+    (``face_nodes`` (f, a) int64, ``x0`` (f, a, 2) reference positions) and whether the start
+    is the cached one: ``cache`` None or ``(xo, co, d_start)`` of an earlier call."""
+    nf, na = face_nodes.shape
+    xo, xn = np.empty((2, nf, na, 2))
+    co = _arr(co, float)
     cached = cache is not None
-    cxo, cco, d_start = cache if cached else (xo, co, None)
-    reuse = _faces(c(u_old, float), c(u_new, float), grp._face_nodes64, grp._x0, xo, xn,
-                   cached, cxo, cco, co)
-    if nsub is None:
-        nsub = grp.substeps_for(xo, xn, geo)
+    cxo, cco = (cache[0], cache[1]) if cached else (xo, co)
+    same = _faces(_arr(u_old, float), _arr(u_new, float), face_nodes, x0, xo, xn, cached, cxo,
+                  cco, co)
+    return xo, xn, same
+
+
+def contact_group(element, chain, law_vector, xo, xn, reuse, d_start, co, cn, nsub, theta, geo,
+                  tangent, state, frozen):
+    """:func:`_contact` for one contact group: ``(new_state, f, K, outside, d_start, flags)``.
+
+    ``element``: the group's constant arrays ``(N, dN, W, t0, P0, At, RAt, AP0, axisymmetric,
+    thickness, touch_tol, far, jac_tol)`` (see ``ContactGroup``); ``chain``: the foundation's
+    ``kernel_arrays()``; ``law_vector``: ``Coulomb.kernel_vector()``; ``xo``, ``xn``, ``reuse``
+    from :func:`face_positions`; ``d_start`` (g,) the start penetration when ``reuse`` (else
+    computed here and returned); ``co``, ``cn`` the foundation translations; ``nsub`` the
+    sub-intervals.  ``flags``: counts of (snap-backs, degenerate faces, non-finite values)."""
+    calls["contact"] += 1
+    N, dN, W, t0, P0, At, RAt, AP0, axisym, thickness, touch_tol, far, jac_tol = element
+    A, B, C, so, st, eo, et, s_tol, cos_min = chain
+    c = _arr
+    nf, na = xo.shape[0], xo.shape[1]
+    nd, ng = 2 * na, nf * N.shape[0]
     if not reuse:
         d_start = np.empty(ng)
     out = np.empty((5, ng))
@@ -765,17 +716,17 @@ def contact_group(grp, kernels_static, u_new, u_old, co, cn, nsub, theta, geo, t
     f = np.empty((nf, nd))
     K = np.empty((nf, nd, nd)) if tangent else np.empty((0, nd, nd))
     hold = _NO_HOLD if frozen is None else c(np.broadcast_to(frozen, (ng,)), np.int64)
-    flags = _contact(bool(geo), bool(tangent), bool(grp.axisymmetric), int(nsub), float(theta),
-                     grp.thickness, grp._touch_tol, 1e30, grp._jac_tol, xo, xn, N, dN, W, t0, P0,
-                     At, RAt, AP0, not reuse, d_start, co, cn, *_arcs(fd), so, st, eo, et,
-                     fd.s_tol, fd.cos_min, lv, c(state["p"], float), c(state["tau"], float),
-                     c(state["lam"], float), c(state["slip"], float), c(state["dissip"], float),
-                     c(state["status"], np.int8), hold, frozen is not None, out[0], out[1],
-                     out[2], out[3], out[4], status, outside, f, K)
+    flags = _contact(bool(geo), bool(tangent), bool(axisym), int(nsub), float(theta),
+                     float(thickness), touch_tol, far, jac_tol, xo, xn, N, dN, W, t0, P0, At,
+                     RAt, AP0, not reuse, d_start, c(co, float), c(cn, float), A, B, C, so, st,
+                     eo, et, s_tol, cos_min, law_vector, c(state["p"], float),
+                     c(state["tau"], float), c(state["lam"], float), c(state["slip"], float),
+                     c(state["dissip"], float), c(state["status"], np.int8), hold,
+                     frozen is not None, out[0], out[1], out[2], out[3], out[4], status, outside,
+                     f, K)
     new_state = dict(p=out[0], tau=out[1], lam=out[2], slip=out[3], dissip=out[4],
                      status=status)
     for k, v in state.items():                # entries the law does not own: copied through
         if k not in new_state:
             new_state[k] = np.array(v, copy=True)
-    start = None if reuse else (xo, co.copy(), d_start)
-    return new_state, f, (K if tangent else None), outside, start, flags
+    return new_state, f, (K if tangent else None), outside, d_start, flags

@@ -1,0 +1,80 @@
+"""The fast twins: numba kernels of the hot loops, in one place, and the one rule that picks them.
+
+Each kernel does, point by point, exactly what a NumPy reference does array by array (same
+formulas in the same order, same branches), without the fixed cost of ~100 small array
+operations per call:
+
+* :mod:`.solid`   -- a solid element group computed and scattered into the CSR data (the laws
+  ELASTIC, J2_LINEAR, RAMBERG_OSGOOD; reference: ``SolidElement.compute`` and the law's
+  ``update``);
+* :mod:`.contact` -- the foundation projection (reference: ``Foundation.project``) and a whole
+  contact group with the COULOMB law (reference: ``ContactGroup.compute`` and
+  ``Coulomb.update``).
+
+Kernels are pure functions of arrays: they import nothing of the layers above (laws and
+elements hand them their parameters as vectors, :mod:`.layout` says how), and numba only when
+one is first used (``import numba`` and the cached machine code take a few tenths of a second, a
+first compile about ten seconds).  numba is optional (``pip install lagamine_py[fast]``); without
+it everything runs on the NumPy references.
+
+:func:`use_numba` is the one rule that chooses: ``*CONTROLS KERNEL=NUMPY`` never, ``NUMBA``
+always, ``AUTO`` from :data:`AUTO_NUMBA_ELEMENTS` solid elements (below that, loading numba costs
+more than it saves, and the small decks keep the NumPy reference's round-off).  A group then uses
+its kernel where it has one (a law or foundation the kernel reproduces).
+
+:data:`calls` counts the calls of each kernel: tests use it to prove that a fast path ran.
+"""
+from __future__ import annotations
+
+from collections import Counter
+from importlib import import_module
+from types import ModuleType
+
+__all__ = ["SETTINGS", "AUTO_NUMBA_ELEMENTS", "available", "module", "use_numba", "calls"]
+
+SETTINGS = ("AUTO", "NUMPY", "NUMBA")
+#: KERNEL=AUTO uses numba from this many solid elements in the model.  Below it the kernels save
+#: less than they cost to load (numba import and cached machine code 0.4 s, a first compile 9 s),
+#: and the small decks keep the NumPy reference's round-off: press_slide's contact decisions turn
+#: on 1e-14 (19 increments and a cut-back instead of 16 with numba).
+AUTO_NUMBA_ELEMENTS = 2_000
+#: kernel name -> number of calls (incremented by the kernel modules' entry points)
+calls: Counter = Counter()
+
+_MODULES = ("solid", "contact")
+_loaded: dict[str, ModuleType | None] = {}
+
+
+def module(name: str) -> ModuleType | None:
+    """The numba kernel module ``name`` (``solid`` or ``contact``), or None when numba does not
+    import.  Imported once, on first use."""
+    if name not in _MODULES:
+        raise KeyError(f"no kernel module {name!r}; kernels are {', '.join(_MODULES)}")
+    if name not in _loaded:
+        try:
+            _loaded[name] = import_module(f"{__name__}.{name}")
+        except ImportError:
+            _loaded[name] = None
+    return _loaded[name]
+
+
+def available() -> bool:
+    """True when numba is installed and the kernels import."""
+    return module("solid") is not None
+
+
+def use_numba(setting: str, solid_elements: int) -> bool:
+    """Whether the kernel setting asks for the numba kernels on a model of ``solid_elements``.
+
+    Raises KeyError for an unknown setting, or for ``NUMBA`` without numba installed."""
+    setting = str(setting).upper()
+    if setting not in SETTINGS:
+        raise KeyError(f"KERNEL={setting}: expected one of {', '.join(SETTINGS)}")
+    if setting == "NUMPY":
+        return False
+    if setting == "NUMBA":
+        if not available():
+            raise KeyError("KERNEL=NUMBA needs the optional package numba "
+                           "(pip install 'lagamine_py[fast]')")
+        return True
+    return solid_elements >= AUTO_NUMBA_ELEMENTS and available()
