@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from lagamine_py.elements.base import StepContext
+from lagamine_py.core.errors import DivergingResidual, GroupFailure, IterationLimit, NotANumber
 from lagamine_py.solver.linear import FreeDofs, SingularMatrixError, SpluSolver
-from lagamine_py.solver.newton import (DivergingResidual, GroupFailure, IterationLimit,
-                                       NotANumber, Settings, solve_increment)
+from lagamine_py.solver.newton import Settings, solve_increment
 
 from test_solver_fakes import GROUND, Atan, Failing, PlasticSprings, Springs, make_model, make_problem
 
@@ -134,16 +134,14 @@ def test_trial_state_not_committed_and_returned():
 def test_flip_flopping_contact_points_are_frozen():
     """A point whose status switched FLIPFLOP times is held (ctx.freeze_contact[name]); the
     others stay free (-1); solid groups are not watched."""
-    from types import SimpleNamespace
-
-    from lagamine_py.solver.newton import _FlipFlop
-    problem = SimpleNamespace(group_names=["solid", "BOTTOM->FLAT"], kinds=["solid", "contact"])
-    ff = _FlipFlop(problem, limit=3)
+    from lagamine_py.solver.stabilisation import FlipFlop
+    ff = FlipFlop({1: "BOTTOM->FLAT"}, limit=3)
     ctx = StepContext()
     seen = []
     for it in range(5):
         st = np.array([it % 2, 1], np.int8)           # point 0 chatters, point 1 sticks
-        out = ff.context(ctx, [{"status": np.array([it % 2])}, {"status": st}])
+        contact = {"status": st, "p": np.ones(2), "tau": np.zeros(2)}
+        out = ff.context(ctx, [{"status": np.array([it % 2])}, contact])
         seen.append(out.freeze_contact)
     assert seen[:3] == [None, None, None]             # 0, 1, 2 switches
     assert set(seen[3]) == {"BOTTOM->FLAT"}

@@ -312,22 +312,23 @@ def test_linear_extrapolation_is_exact_on_a_linear_ramp(tmp_path):
 
 def test_extrapolation_rule_and_step_start():
     """u + (dt / dt_last) du_last; nothing to extrapolate at the start of a step or with NONE."""
-    from lagamine_py.solver.steps import _extrapolated
+    from lagamine_py.solver.predictor import extrapolated
     u, du = np.array([1.0, 2.0]), np.array([0.5, -1.0])
-    assert np.allclose(_extrapolated(u, (du, 0.2), 0.1, "LINEAR"), [1.25, 1.5])
-    assert _extrapolated(u, None, 0.1, "LINEAR") is None
-    assert _extrapolated(u, (du, 0.2), 0.1, "NONE") is None
+    assert np.allclose(extrapolated(u, (du, 0.2), 0.1, "LINEAR"), [1.25, 1.5])
+    assert extrapolated(u, None, 0.1, "LINEAR") is None
+    assert extrapolated(u, (du, 0.2), 0.1, "NONE") is None
 
 
 def test_extrapolation_does_not_cross_steps(tmp_path):
     """Step 2 reverses the load: its first increment starts from the converged state (as the
-    iteration count of a linear problem cannot tell, the first iterate is recorded)."""
+    iteration count of a linear problem cannot tell, the predicted part of the first iterate is
+    recorded: None where nothing was extrapolated)."""
     from lagamine_py.solver import newton
     starts = []
     orig = newton.solve_increment
 
     def spy(*a, **k):
-        starts.append(k.get("u_start"))
+        starts.append(k.get("predicted"))
         return orig(*a, **k)
 
     model = make_model(1, [step("A", dt0=0.5, dt_max=0.5, cloads=[cload(0, 1, 4.0)]),

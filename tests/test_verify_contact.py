@@ -271,21 +271,20 @@ def test_flip_flop_tracker_sees_slip_reversals_and_settles():
     """Unit check of the flip-flop control: a point slipping +, -, + is frozen in STICK (the
     state between), one going slip, stick, slip is frozen where it is; the free law's status
     replaces a frozen one that it contradicts (``settle``), at most ``max_rounds`` times."""
-    from types import SimpleNamespace
-
     from lagamine_py.elements.base import StepContext
-    from lagamine_py.solver.newton import _FlipFlop
+    from lagamine_py.solver.stabilisation import FlipFlop
 
-    problem = SimpleNamespace(group_names=["solid", "S->F"], kinds=["solid", "contact"])
-    ff = _FlipFlop(problem, limit=2)
+    ff = FlipFlop({1: "S->F"}, limit=2)
     ctx = StepContext()
     seq = [([2, 2, 2], [1.0, 1.0, 1.0]), ([2, 1, 2], [-1.0, 0.5, 1.0]), ([2, 2, 2], [1.0, 1.0, 1.0])]
-    outs = [ff.context(ctx, [{}, {"status": np.array(s, np.int8), "tau": np.array(t)}])
+    outs = [ff.context(ctx, [{}, {"status": np.array(s, np.int8), "tau": np.array(t),
+                                  "p": np.full(3, 5.0)}])
             for s, t in seq]
     assert outs[0].freeze_contact is None and outs[1].freeze_contact is None
     assert outs[2].freeze_contact["S->F"].tolist() == [1, 2, -1]
     assert ctx.freeze_contact is None
-    free = [{}, {"status": np.array([2, 2, 2], np.int8), "tau": np.array([1.0, 1.0, 1.0])}]
+    free = [{}, {"status": np.array([2, 2, 2], np.int8), "tau": np.array([1.0, 1.0, 1.0]),
+                 "p": np.full(3, 5.0)}]
     assert ff.settle(ctx, free).freeze_contact["S->F"].tolist() == [2, 2, -1]
     assert ff.settle(ctx, free) is not None          # second round allowed
     assert ff.settle(ctx, free) is None              # then the increment must be cut back

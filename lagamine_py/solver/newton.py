@@ -17,25 +17,30 @@ there).  Failures are typed (:class:`IterationLimit`, :class:`DivergingResidual`
 
 Imposed DOFs: the first iteration solves ``K_ff du_f = -R_f - K_fc du_c`` with ``du_c`` the
 increment of the imposed values, later ones ``K_ff du_f = -R_f`` (``du_c = 0``).
+
+Newton knows no physics.  What a scene needs beyond plain Newton comes in through
+:class:`IterationObserver` objects, which may change the context of the next evaluation (the
+contact stabilisation of :mod:`lagamine_py.solver.stabilisation` holds chattering points) and
+must then settle a converged solve against the increment's own context.  The first iterate is
+the caller's (:mod:`lagamine_py.solver.predictor`).
 """
 from __future__ import annotations
 
-import dataclasses
 import logging
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ..core.errors import (ContactNotSettled, ConvergenceFailure, DivergingResidual,  # noqa: F401
-                           GroupFailure, IterationLimit, NotANumber, SingularMatrixError)
-from ..core.status import SLIP, STICK
+from ..core.errors import (ConvergenceFailure, DivergingResidual, IterationLimit,  # noqa: F401
+                           NotANumber, SingularMatrixError)
+
+__all__ = ["Settings", "Converged", "IterationObserver", "solve_increment", "FLOOR_FRACTION"]
 
 log = logging.getLogger("lagamine_py.solver")
 
 DIVERGED_REL = 1e10          # a relative residual above this is a blow-up
 FLOOR_FRACTION = 1e-6        # floor of the force scale, times the largest earlier scale
-_SLIP_NEG = 3                # flip-flop state code of a point slipping with tau < 0
 
 
 @dataclass
@@ -44,13 +49,39 @@ class Settings:
     etol: float = 1e-14
     maxit: int = 25
     linesearch: bool = False
-    flipflop: int = 4
 
     @classmethod
     def from_controls(cls, controls: dict[str, Any]) -> "Settings":
         return cls(rtol=float(controls["RTOL"]), etol=float(controls["ETOL"]),
-                   maxit=int(controls["MAXIT"]), linesearch=bool(controls["LINESEARCH"]),
-                   flipflop=int(controls["FLIPFLOP"]))
+                   maxit=int(controls["MAXIT"]), linesearch=bool(controls["LINESEARCH"]))
+
+
+class IterationObserver:
+    """Watches the iterations of one increment (a new one per increment).
+
+    :meth:`context` is called after every solve with the states of the last evaluation and
+    returns the context of the next evaluation (the increment's own, or one that changes the
+    problem: held contact points, say).  While the observer is :attr:`active` (it has changed
+    the problem), a converged iterate is reviewed with the increment's own context; if that does
+    not converge, :meth:`settle` returns the context to iterate on, or None when it gives up,
+    and Newton then raises :attr:`failure` (the increment is cut back).  Never is an increment
+    accepted that the increment's own context does not converge.
+    """
+
+    #: what the observer holds, for the log ("frozen contact points")
+    held = "held values"
+    #: the failure raised when the observer cannot settle
+    failure: type = ConvergenceFailure
+
+    @property
+    def active(self) -> bool:
+        return False
+
+    def context(self, ctx, states):
+        return ctx
+
+    def settle(self, ctx, states):
+        return None
 
 
 @dataclass
@@ -68,14 +99,16 @@ class Converged:
 
 def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict], ctx,
                     u_c: np.ndarray, f_ext: np.ndarray, settings: Settings,
-                    floor: float = 0.0, u_start: np.ndarray | None = None) -> Converged:
+                    floor: float = 0.0, u_start: np.ndarray | None = None,
+                    predicted: np.ndarray | None = None,
+                    observers: tuple[IterationObserver, ...] = ()) -> Converged:
     """Solve one increment.
 
     Parameters
     ----------
     problem : object with ``evaluate(u_new, u_old, states, ctx, tangent) -> Evaluation``
-        (``f_int`` (ndof,), ``data`` CSR data or None, ``states``, ``scale``), see
-        :class:`lagamine_py.solver.problem.Problem`.
+        (``f_int`` (ndof,), ``data`` CSR data or None, ``states``, ``scale``) and ``pattern``,
+        see :class:`lagamine_py.solver.problem.Problem`.
     solver : LinearSolver plugin instance.
     free : :class:`lagamine_py.solver.linear.FreeDofs` of the constrained set.
     u_old : (ndof,) displacement at the start of the increment.
@@ -84,20 +117,19 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     u_c : (c,) imposed values at the end of the increment, at ``free.constrained``.
     f_ext : (ndof,) external nodal forces at the end of the increment.
     floor : absolute floor of the force scale.
-    u_start : (ndof,) first iterate (the step controller's extrapolation), default ``u_old``
-        (translated with a moving foundation, see :func:`_foundation_shift`).  Its constrained
-        entries are corrected to ``u_c`` by the first iteration like any imposed increment.
+    u_start : (ndof,) first iterate (:func:`lagamine_py.solver.predictor.first_iterate`),
+        default ``u_old``.  Its constrained entries are corrected to ``u_c`` by the first
+        iteration like any imposed increment.
+    predicted : (ndof,) the predicted part of ``u_start``, whose energy the energy test counts
+        (see :func:`_predicted_energy`); None: none.
+    observers : :class:`IterationObserver` instances watching this increment.
     """
     c = free.constrained
     u = np.array(u_old if u_start is None else u_start, float)
-    shift = _foundation_shift(ctx, u.size) if u_start is None else None
-    if shift is not None:
-        u += shift        # start translated with a moving foundation (see _foundation_shift)
-    predicted = u - u_old if u_start is not None else None     # the extrapolated part
     du_imposed = np.zeros_like(u)
     du_imposed[c] = u_c - u[c]
     imposing = bool(np.any(du_imposed[c] != 0.0))
-    tracker = _FlipFlop(problem, settings.flipflop)
+    watch = _Observers(observers)
     ctx_k = ctx
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
@@ -112,11 +144,11 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
         if not np.isfinite(rel):
             raise NotANumber(f"non-finite residual at iteration {k}", history)
         if not imposing and rel <= settings.rtol:
-            if not tracker.active:
+            if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged", k, rel)
                 return Converged(u, ev.states, ev.f_int, k, rel, scale, history)
-            done, ev, ctx_k = _unfrozen(problem, tracker, u, u_old, states, ctx, f_ext, free,
-                                        scale, settings.rtol, history, k)
+            done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
+                                      scale, settings.rtol, history, k)
             if done is not None:
                 return done
             continue
@@ -142,17 +174,18 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
             R = ev.f_int - f_ext
             rel = float(np.linalg.norm(R[free.free])) / scale
             history.append(rel)
-            if not tracker.active:
+            if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged (energy)", k + 1, rel)
                 return Converged(u, ev.states, ev.f_int, k + 1, rel, scale, history)
-            # frozen points: the free law must give the same (energy-converged) residual
-            done, ev, ctx_k = _unfrozen(problem, tracker, u, u_old, states, ctx, f_ext, free,
-                                        scale, max(settings.rtol, rel * (1.0 + 1e-6)), history,
-                                        k + 1)
+            # held values: the increment's own context must give the same (energy-converged)
+            # residual
+            done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
+                                      scale, max(settings.rtol, rel * (1.0 + 1e-6)), history,
+                                      k + 1)
             if done is not None:
                 return done
             continue
-        ctx_k = tracker.context(ctx, ev.states)
+        ctx_k = watch.context(ctx, ev.states)
         if settings.linesearch and not imposing:
             u, ev = _line_search(problem, u, du, u_old, states, ctx_k, f_ext, free, rhs, du_f)
         else:
@@ -160,10 +193,39 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
             ev = problem.evaluate(u, u_old, states, ctx_k, True)
         imposing = False
         du_imposed[:] = 0.0
-    # a solve that converged with frozen points on the last allowed iteration, whose free-law
-    # check asked for more iterations
+    # a solve that converged with held values on the last allowed iteration, whose review
+    # asked for more iterations
     raise IterationLimit(f"no convergence in {settings.maxit} iterations (|R|/F = {history[-1]:.3e})",
                          history)
+
+
+class _Observers:
+    """The observers of an increment as one: the context passes through each in turn."""
+
+    def __init__(self, observers):
+        self.all = tuple(observers)
+
+    @property
+    def active(self) -> bool:
+        return any(o.active for o in self.all)
+
+    def context(self, ctx, states):
+        for o in self.all:
+            ctx = o.context(ctx, states)
+        return ctx
+
+    def settle(self, ctx, states, message, history):
+        """The context to iterate on after a failed review; raises the failure of the first
+        active observer that gives up."""
+        for o in self.all:
+            if o.active:
+                ctx = o.settle(ctx, states)
+                if ctx is None:
+                    raise o.failure(message, history)
+        return ctx
+
+    def held(self) -> str:
+        return " and ".join(o.held for o in self.all if o.active)
 
 
 def _predicted_energy(problem, data, d: np.ndarray) -> float:
@@ -178,50 +240,24 @@ def _predicted_energy(problem, data, d: np.ndarray) -> float:
     return abs(float(d @ (problem.pattern.matrix(data) @ d)))
 
 
-def _foundation_shift(ctx, ndof: int) -> np.ndarray | None:
-    """(ndof,) rigid translation ``T`` of every node by the foundations' motion over the
-    increment, when they all move by the same nonzero ``dc`` (else None): the first iterate.
-
-    Contact, solid and pressure forces are invariant under a common translation of body and
-    foundation (exactly in plane strain, and along the axis in axisymmetry), so at
-    ``u_old + T`` every group is in its converged state again: the first iteration is the
-    usual predictor from the converged state and its tangent (stick where the body stuck),
-    the motion entering through the imposed DOFs, which now move by ``u_c - u_old_c - T_c``.
-    Starting from ``u_old`` instead puts a tangential trial ``KT dc`` on every stuck point,
-    all of them slipping at once, the whole interface then slipping back and forth over the
-    iterations (the Cattaneo-Mindlin stall)."""
-    old, new = getattr(ctx, "foundation_old", None), getattr(ctx, "foundation_new", None)
-    if not old or not new or set(old) != set(new):
-        return None
-    steps = [np.asarray(new[n], float) - np.asarray(old[n], float) for n in new]
-    dc = steps[0]
-    if not np.any(dc != 0.0) or any(np.any(s_ != dc) for s_ in steps[1:]) or ndof % 2:
-        return None
-    return np.tile(dc, ndof // 2)
-
-
-def _unfrozen(problem, tracker, u, u_old, states, ctx, f_ext, free, scale, tol, history, k):
-    """Acceptance of a solve converged with frozen contact points: the free law (no freezing)
-    evaluated at ``u`` must satisfy the tolerance too, else the frozen status was wrong.
+def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, history, k):
+    """Acceptance of a solve converged under an observer's context: the increment's own context
+    (the free law, without held values) evaluated at ``u`` must satisfy the tolerance too.
 
     Returns ``(Converged | None, ev, ctx_k)``: the accepted result, with the free law's states;
-    or None with the evaluation and context to iterate on (the disagreeing points held in the
-    free law's status, :meth:`_FlipFlop.settle`).  Raises :class:`ContactNotSettled` when the
-    contact state cannot settle."""
+    or None with the evaluation and context to iterate on (the observers' :meth:`settle`).
+    Raises the observer's failure when it cannot settle."""
     ev = problem.evaluate(u, u_old, states, ctx, True)
     rel = float(np.linalg.norm((ev.f_int - f_ext)[free.free])) / scale
+    held = watch.held()
     if rel <= tol:
         history[-1] = rel           # the same iterate u: its residual with the states accepted
-        log.info("    iter %2d  |R|/F = %.3e  converged (frozen contact points agree with the "
-                 "free law)", k, rel)
+        log.info("    iter %2d  |R|/F = %.3e  converged (%s agree with the free law)", k, rel, held)
         return Converged(u, ev.states, ev.f_int, k, rel, scale, history), ev, ctx
-    log.info("    iter %2d  frozen contact points disagree with the free law (|R|/F = %.3e)",
-             k, rel)
-    ctx_k = tracker.settle(ctx, ev.states)
-    if ctx_k is None:
-        raise ContactNotSettled(f"the contact status did not settle: frozen points disagree with "
-                                f"the law at convergence (|R|/F = {rel:.3e} with the free law)",
-                                history + [rel])
+    log.info("    iter %2d  %s disagree with the free law (|R|/F = %.3e)", k, held, rel)
+    ctx_k = watch.settle(ctx, ev.states,
+                         f"{held} disagree with the free law at convergence (|R|/F = {rel:.3e} "
+                         f"with the free law)", history + [rel])
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
 
@@ -264,100 +300,3 @@ def _line_search(problem, u, du, u_old, states, ctx, f_ext, free, rhs, du_f, tri
     if s != 1.0:
         ev = problem.evaluate(u + s * du, u_old, states, ctx, True)
     return u + s * du, ev
-
-
-class _FlipFlop:
-    """Watches the contact status of every point over the iterations of one increment and
-    freezes the points that chatter.
-
-    A point's *state* is its status with the direction of slip: open, stick, slip+ or slip-
-    (a point slipping one way at one iteration and the other way at the next has the zero
-    tangential stiffness of sliding on both sides of the answer, so Newton jumps over the
-    narrow elastic range in between for ever: the status alone does not change).  After
-    ``limit`` state changes a point is frozen: in STICK when it has slipped both ways (the
-    only state left between the two), else in its current status.  A frozen SLIP point that
-    still reverses is re-frozen in STICK.
-
-    Freezing changes the law Newton solves, so a converged increment is accepted only if the
-    free law agrees (:meth:`settle`); where it does not, the points concerned take the free
-    law's status and Newton goes on, at most ``max_rounds`` times.
-
-    ``ctx.freeze_contact`` becomes ``{group_name: (g,) int8}`` with -1 for free points and the
-    status to hold otherwise (None while nothing is frozen)."""
-
-    max_rounds = 2
-
-    def __init__(self, problem, limit: int):
-        self.limit = limit
-        self.names = getattr(problem, "group_names", None)
-        kinds = getattr(problem, "kinds", None)
-        self.watched = None if kinds is None else {k for k, kd in enumerate(kinds) if kd == "contact"}
-        self.last: dict[int, np.ndarray] = {}
-        self.count: dict[int, np.ndarray] = {}
-        self.both_ways: dict[int, np.ndarray] = {}
-        self.frozen: dict[int, np.ndarray] = {}
-        self.rounds = 0
-
-    @property
-    def active(self) -> bool:
-        return bool(self.frozen)
-
-    def _states(self, states):
-        """(group index, status (g,), state code (g,)) of the watched groups: code = status,
-        or ``_SLIP_NEG`` for a point slipping with tau < 0."""
-        for k, st in enumerate(states):
-            if self.watched is not None and k not in self.watched:
-                continue
-            status = st.get("status") if isinstance(st, dict) else None
-            if status is None:
-                continue
-            status = np.asarray(status).ravel()
-            tau, p = st.get("tau"), st.get("p")
-            code = status.astype(np.int8)
-            if tau is not None and np.shape(tau) == status.shape:
-                # a slip direction only where tau is not round-off (frictionless contact has
-                # tau ~ 1e-12 p of either sign: no reversal to freeze there)
-                floor = 1e-9 * np.abs(np.asarray(p).ravel()) if p is not None else 0.0
-                code = np.where((status == SLIP) & (np.asarray(tau).ravel() < -floor), _SLIP_NEG, code)
-            yield k, status, code.astype(np.int8)
-
-    def context(self, ctx, states):
-        """Update the counts with the states of the last evaluation; the context of the next."""
-        for k, status, code in self._states(states):
-            if k in self.last and self.last[k].shape == code.shape:
-                prev = self.last[k]
-                switched = code != prev
-                self.count[k] = self.count.get(k, 0) + switched
-                reversal = switched & np.isin(code, (SLIP, _SLIP_NEG)) & np.isin(prev, (SLIP, _SLIP_NEG))
-                self.both_ways[k] = self.both_ways.get(k, np.zeros(code.shape, bool)) | reversal
-                fz = self.frozen.get(k)
-                if fz is not None:               # a frozen slipping point that still reverses
-                    fz[(fz == SLIP) & reversal] = STICK
-                hit = self.count[k] >= self.limit
-                if hit.any():
-                    fz = self.frozen.setdefault(k, np.full(code.shape, -1, np.int8))
-                    newly = hit & (fz < 0)
-                    fz[newly] = np.where(self.both_ways[k][newly], STICK, status[newly])
-            self.last[k] = code.copy()
-        return self._with_frozen(ctx)
-
-    def _with_frozen(self, ctx):
-        if not self.frozen:
-            return ctx
-        name = (lambda k: self.names[k]) if self.names else str
-        return dataclasses.replace(ctx, freeze_contact={name(k): v.copy()
-                                                        for k, v in self.frozen.items()})
-
-    def settle(self, ctx, free_states) -> Any:
-        """After a converged solve with frozen points whose free-law evaluation does not converge:
-        give the frozen points where the free law disagrees the free law's status (held) and
-        return the context for more iterations; None when ``max_rounds`` are used up."""
-        self.rounds += 1
-        if self.rounds > self.max_rounds:
-            return None
-        for k, status, _ in self._states(free_states):
-            fz = self.frozen.get(k)
-            if fz is not None:
-                wrong = (fz >= 0) & (fz != status)
-                fz[wrong] = status[wrong]
-        return self._with_frozen(ctx)

@@ -1,12 +1,13 @@
-"""The step controller: steps in sequence, automatic increments, cut-backs, writers, restart.
+"""The step controller: steps in sequence, increments, cut-backs, writers, restart.
 
 Per step: the loads are resolved against what the previous steps left (:mod:`.loads`); the
-increment starts at ``dt0``, grows by ``GROWTH`` after an increment that converged in at most
-``EASY`` iterations without a cut-back, never beyond ``dt_max`` or the step end, and is cut by
-``CUTBACK`` on any typed failure of Newton.  When a cut-back would go below ``dt_min`` the run
-stops with status 3 and a message naming the step, the time reached and why; every converged
-increment has already been handed to the writers (and saved for restart).  Group states are
-committed only on convergence.
+increment sizes come from a :class:`~.stepper.Stepper` (start at ``dt0``, grow by ``GROWTH``
+after an easy increment, cut by ``CUTBACK`` -- or the factor a failure asks for -- on any typed
+failure of Newton); each attempt starts from :func:`~.predictor.first_iterate` and is watched
+by the contact stabilisation (:class:`~.stabilisation.FlipFlop`).  When a cut-back would go
+below ``dt_min`` the run stops with status 3 and a message naming the step, the time reached and
+why; every converged increment has already been handed to the writers (and saved for restart).
+Group states are committed only on convergence.
 
 The run's messages (steps, Newton norms, cut-backs, the stop reason) go to the
 ``lagamine_py.solver`` logger (the STATUS writer copies them into ``OUT/<deck>.log``).
@@ -33,7 +34,10 @@ from . import restart as rs
 from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, step_loads
 from .newton import FLOOR_FRACTION, Settings, solve_increment
+from .predictor import first_iterate
 from .problem import CONTACT, SOLID, Problem, build_problem, dload_surfaces
+from .stabilisation import FlipFlop
+from .stepper import StepExhausted, Stepper
 
 log = logging.getLogger("lagamine_py.solver")
 
@@ -158,79 +162,85 @@ class Controller:
         return Outcome(status, message)
 
     def _run_step(self, si: int, resume: dict | None) -> None:
-        model, step = self.model, self.model.steps[si]
+        """Run step ``si`` (from its start, or from ``resume``): the increment loop."""
+        step = self.model.steps[si]
+        controls, settings, solver = self._setup_step(si, step)
+        if resume is not None:
+            loads, last = resume["loads"], resume["last"]
+            stepper = Stepper.start(step, controls, resume["t"], resume["dt"], resume["inc"])
+        else:
+            loads = step_loads(self.model, step, self.reached, self.u, self.reaction,
+                               self.surfaces, self.foundations)
+            # the last converged increment of the step (displacement change, dt): the
+            # predictor of the next one (EXTRAPOLATION=LINEAR); none at a step start
+            last = None
+            stepper = Stepper.start(step, controls)
+        free = FreeDofs(self.problem.pattern, loads.constrained)
+        self._start_step(si, step, loads, controls)
+        while not stepper.finished:
+            conv = self._increment(si, step, loads, free, solver, settings, controls, stepper,
+                                   last)
+            last = (conv.u - self.u, stepper.attempt)
+            self._commit(conv, loads, free)
+            t = stepper.accept(conv.iterations)
+            self._hand_out(si, step, loads, stepper.inc, t, stepper.attempt, conv,
+                           stepper.cutbacks, stepper.period)
+            self._save_restart(si, loads, stepper, last)
+        self.reached = loads.reached(self.model)
+        self.time_offset += stepper.period
+        self.progress.end()
+
+    def _setup_step(self, si, step):
+        """The step's ``*CONTROLS`` (defaults filled), Newton settings and linear solver; the
+        kernel choice applied.  SetupError when the step cannot start."""
         try:
             controls = step_controls(step)
         except ParamError as exc:
             raise SetupError(f"step {si + 1} ({step.name}): *CONTROLS: {exc}") from None
-        settings = Settings.from_controls(controls)
         try:
             solver = make_solver(controls["SOLVER"])
             self.problem.set_kernel(controls["KERNEL"])
         except KeyError as exc:
             raise SetupError(f"step {si + 1} ({step.name}): {exc.args[0]}") from None
-        T = float(step.period)
-        if not T > 0:
-            raise SetupError(f"step {si + 1} ({step.name}): the step time must be positive, got {T:g}")
-        if resume is not None:
-            loads, t, dt, inc = resume["loads"], resume["t"], resume["dt"], resume["inc"]
-        else:
-            loads = step_loads(model, step, self.reached, self.u, self.reaction,
-                               self.surfaces, self.foundations)
-            t, inc = 0.0, 0
-            dt = min(step.dt0, step.dt_max, T)
-        # the last converged increment of this step (displacement change, dt): the predictor
-        # of the next one (EXTRAPOLATION=LINEAR); none at the start of a step
-        last = resume.get("last") if resume is not None else None
-        free = FreeDofs(self.problem.pattern, loads.constrained)
-        log.info("step %d %s: period %g, dt0 %g, %d constrained DOFs", si + 1, step.name, T,
-                 step.dt0, len(loads.constrained))
+        if not float(step.period) > 0:
+            raise SetupError(f"step {si + 1} ({step.name}): the step time must be positive, "
+                             f"got {float(step.period):g}")
+        return controls, Settings.from_controls(controls), solver
+
+    def _start_step(self, si, step, loads, controls) -> None:
+        log.info("step %d %s: period %g, dt0 %g, %d constrained DOFs", si + 1, step.name,
+                 step.period, step.dt0, len(loads.constrained))
         self._log_kernel(controls["KERNEL"])
         wanted = step_writers(step)
         self.active = [w for name, w in self.writers.items()
                        if name.startswith("#") or name in wanted or w.always]
         for w in self.writers.values():
             w.start_step(si + 1, step)
-        while T - t > 1e-12 * T:
-            if inc >= step.max_increments:
-                raise StepFailed(f"step {si + 1} ({step.name}): reached the maximum of "
-                                 f"{step.max_increments} increments (INC=) at step time {t:g} "
-                                 f"of {T:g} (total time {self.time_offset + t:g})")
-            dt_try = min(dt, T - t)
-            cutbacks = 0
-            while True:
+
+    def _increment(self, si, step, loads, free, solver, settings, controls, stepper, last):
+        """One converged increment: attempts from :meth:`Stepper.trial`, cut back on every
+        typed failure until one converges; StepFailed when the stepper runs out."""
+        where = lambda: (f"at step time {stepper.t:g} of {stepper.period:g} "    # noqa: E731
+                         f"(total time {self.time_offset + stepper.t:g})")
+        try:
+            stepper.trial()
+        except StepExhausted as exc:
+            raise StepFailed(f"step {si + 1} ({step.name}): {exc} {where()}") from None
+        while True:
+            try:
+                return self._attempt(step, loads, free, solver, settings, controls, stepper, last)
+            except (ConvergenceFailure, SingularMatrixError) as exc:
+                reason = self._failure_text(exc)
+                if isinstance(exc, SingularMatrixError) and not self.has_contact:
+                    raise StepFailed(f"step {si + 1} ({step.name}) stopped at step time "
+                                     f"{stepper.t:g} of {stepper.period:g}: {reason}") from None
+                self._report_failure(si, step, stepper.inc, stepper.t, stepper.attempt,
+                                     stepper.cutbacks + 1, exc, reason)
                 try:
-                    start = _extrapolated(self.u, last, dt_try, controls["EXTRAPOLATION"])
-                    conv = self._attempt(step, loads, free, solver, settings, t, dt_try, start)
-                    break
-                except (ConvergenceFailure, SingularMatrixError) as exc:
-                    reason = self._failure_text(exc)
-                    if isinstance(exc, SingularMatrixError) and not self.has_contact:
-                        raise StepFailed(f"step {si + 1} ({step.name}) stopped at step time "
-                                         f"{t:g} of {T:g}: {reason}") from None
-                    cutbacks += 1
-                    self._report_failure(si, step, inc, t, dt_try, cutbacks, exc, reason)
-                    asked = exc.factor if isinstance(exc, ConvergenceFailure) else None
-                    dt_try *= asked or controls["CUTBACK"]
-                    if dt_try < step.dt_min or dt_try <= 1e-14 * T:     # (dt_min may be 0)
-                        raise StepFailed(
-                            f"step {si + 1} ({step.name}) could not converge: at step time "
-                            f"{t:g} of {T:g} (total time {self.time_offset + t:g}) the time "
-                            f"increment fell to {dt_try:.3g}, below the minimum "
-                            f"{step.dt_min:g}, after {cutbacks} cut-back(s); last failure: "
-                            f"{reason}") from None
-            dt = dt_try
-            inc += 1
-            t = T if T - (t + dt_try) <= 1e-12 * T else t + dt_try
-            last = (conv.u - self.u, dt_try)
-            self._commit(conv, loads, free, t)
-            self._hand_out(si, step, loads, inc, t, dt_try, conv, cutbacks, T)
-            if conv.iterations <= controls["EASY"] and cutbacks == 0:
-                dt = min(dt * controls["GROWTH"], step.dt_max)
-            self._save_restart(si, loads, t, dt, inc, last)
-        self.reached = loads.reached(model)
-        self.time_offset += T
-        self.progress.end()
+                    stepper.cut_back(exc.factor if isinstance(exc, ConvergenceFailure) else None)
+                except StepExhausted as out:
+                    raise StepFailed(f"step {si + 1} ({step.name}) could not converge: "
+                                     f"{where()} {out}; last failure: {reason}") from None
 
     def _log_kernel(self, setting: str) -> None:
         """Say how the solid groups are computed, once per change (a first use of the numba
@@ -243,8 +253,10 @@ class Controller:
             log.info("solid elements computed by %s", text)
             self._kernel_text = text
 
-    def _attempt(self, step, loads: StepLoads, free, solver, settings, t, dt, start=None):
+    def _attempt(self, step, loads: StepLoads, free, solver, settings, controls, stepper, last):
+        """One Newton solve of the increment ``stepper.attempt`` from the step time reached."""
         model, problem = self.model, self.problem
+        t, dt = stepper.t, stepper.attempt
         t_new = t + dt
         ctx = StepContext(nlgeom=bool(step.nlgeom), t_old=self.time_offset + t,
                           t_new=self.time_offset + t_new,
@@ -253,13 +265,17 @@ class Controller:
         problem.set_pressures(loads.pressures(model, t_new))
         f_ext = loads.f_ext(model, t_new, problem.ndof)
         u_c = loads.bc_values(model, t_new)
+        start, predicted = first_iterate(self.u, last, dt, controls["EXTRAPOLATION"], ctx)
+        watched = {k: problem.group_names[k] for k in problem.indices(CONTACT)}
         log.info("  increment at step time %g, dt %g", t_new, dt)
         conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
-                               settings, floor=FLOOR_FRACTION * self.force_ref, u_start=start)
+                               settings, floor=FLOOR_FRACTION * self.force_ref, u_start=start,
+                               predicted=predicted,
+                               observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
         conv.f_ext, conv.ctx = f_ext, ctx
         return conv
 
-    def _commit(self, conv, loads, free, t) -> None:
+    def _commit(self, conv, loads, free) -> None:
         self.u = conv.u
         self.states = conv.states
         self.reaction = np.zeros_like(self.u)
@@ -319,10 +335,12 @@ class Controller:
             w.failed_attempt(attempt)
 
     # -- restart ---------------------------------------------------------------------------
-    def _save_restart(self, si, loads: StepLoads, t, dt, inc, last=None) -> None:
+    def _save_restart(self, si, loads: StepLoads, stepper: Stepper, last=None) -> None:
+        state = stepper.state()
         data = {"deck": np.array(self.deck_path), "ndof": np.array(self.problem.ndof),
                 "ngroups": np.array(len(self.problem.groups)), "step": np.array(si),
-                "t": np.array(t), "dt": np.array(dt), "inc": np.array(inc),
+                "t": np.array(state["t"]), "dt": np.array(state["dt"]),
+                "inc": np.array(state["inc"]),
                 "total_increments": np.array(self.total_increments),
                 "time_offset": np.array(self.time_offset), "force_ref": np.array(self.force_ref),
                 "u": self.u, "reaction": self.reaction}
@@ -352,22 +370,6 @@ class Controller:
         last = (data["last_du"].copy(), float(data["last_dt"])) if "last_du" in data else None
         return {"step": si, "loads": loads, "t": t, "dt": float(data["dt"]),
                 "inc": int(data["inc"]), "last": last}
-
-
-def _extrapolated(u: np.ndarray, last, dt: float, mode: str) -> np.ndarray | None:
-    """First iterate of an increment of ``dt``: ``u + (dt / dt_last) du_last`` (LINEAR), from the
-    last converged increment ``last = (du_last, dt_last)`` of the same step; None (start from
-    ``u``) with NONE or at the start of a step.
-
-    Why: Newton's first iteration otherwise starts with every contact point and material point
-    in the elastic (stick) state of a zero increment, and the slip zone of the previous increment
-    is then rediscovered one front point per iteration (10-15 iterations an increment on fine
-    meshes, cut-backs when the front oscillates).  Linear extrapolation (Abaqus's default for
-    static steps) starts the slipping points slipping."""
-    if mode != "LINEAR" or last is None or not last[1] > 0:
-        return None
-    du, dt_last = last
-    return u + (dt / dt_last) * du
 
 
 def _resume_or_none(resume):

@@ -1,0 +1,111 @@
+"""Contact stabilisation: Newton observers that hold chattering contact points.
+
+:class:`FlipFlop` watches the contact status of every point over the iterations of one
+increment and freezes the points that chatter.  It is an
+:class:`~lagamine_py.solver.newton.IterationObserver`: Newton knows nothing of contact, it asks
+the observer for the context of each evaluation and, when a solve converged under a changed
+context, has the observer settle it against the model's own laws.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..core.errors import ContactNotSettled
+from ..core.status import SLIP, STICK
+from .newton import IterationObserver
+
+__all__ = ["FlipFlop", "SLIP_NEG"]
+
+SLIP_NEG = 3                 # state code of a point slipping with tau < 0
+
+
+class FlipFlop(IterationObserver):
+    """Freezes contact points whose state chatters between Newton iterations.
+
+    A point's *state* is its status with the direction of slip: open, stick, slip+ or slip-
+    (a point slipping one way at one iteration and the other way at the next has the zero
+    tangential stiffness of sliding on both sides of the answer, so Newton jumps over the
+    narrow elastic range in between for ever: the status alone does not change).  After
+    ``limit`` state changes a point is frozen: in STICK when it has slipped both ways (the
+    only state left between the two), else in its current status.  A frozen SLIP point that
+    still reverses is re-frozen in STICK.
+
+    Freezing changes the law Newton solves, so a converged increment is accepted only if the
+    free law agrees (:meth:`settle`); where it does not, the points concerned take the free
+    law's status and Newton goes on, at most ``max_rounds`` times.
+
+    ``watched``: group index -> contact group name, the groups whose states are watched.
+    ``ctx.freeze_contact`` becomes ``{group_name: (g,) int8}`` with -1 for free points and the
+    status to hold otherwise (None while nothing is frozen).
+    """
+
+    max_rounds = 2
+    held = "frozen contact points"
+    failure = ContactNotSettled
+
+    def __init__(self, watched: dict[int, str], limit: int):
+        self.limit = limit
+        self.watched = dict(watched)
+        self.last: dict[int, np.ndarray] = {}
+        self.count: dict[int, np.ndarray] = {}
+        self.both_ways: dict[int, np.ndarray] = {}
+        self.frozen: dict[int, np.ndarray] = {}
+        self.rounds = 0
+
+    @property
+    def active(self) -> bool:
+        return bool(self.frozen)
+
+    def _states(self, states):
+        """(group index, status (g,), state code (g,)) of the watched groups: code = status,
+        or :data:`SLIP_NEG` for a point slipping with tau < 0."""
+        for k in self.watched:
+            st = states[k]
+            status = np.asarray(st["status"]).ravel()
+            tau, p = np.asarray(st["tau"]).ravel(), np.asarray(st["p"]).ravel()
+            # a slip direction only where tau is not round-off (frictionless contact has
+            # tau ~ 1e-12 p of either sign: no reversal to freeze there)
+            code = np.where((status == SLIP) & (tau < -1e-9 * np.abs(p)), SLIP_NEG, status)
+            yield k, status, code.astype(np.int8)
+
+    def context(self, ctx, states):
+        """Update the counts with the states of the last evaluation; the context of the next."""
+        for k, status, code in self._states(states):
+            if k in self.last and self.last[k].shape == code.shape:
+                prev = self.last[k]
+                switched = code != prev
+                self.count[k] = self.count.get(k, 0) + switched
+                reversal = switched & np.isin(code, (SLIP, SLIP_NEG)) & np.isin(prev, (SLIP, SLIP_NEG))
+                self.both_ways[k] = self.both_ways.get(k, np.zeros(code.shape, bool)) | reversal
+                fz = self.frozen.get(k)
+                if fz is not None:               # a frozen slipping point that still reverses
+                    fz[(fz == SLIP) & reversal] = STICK
+                hit = self.count[k] >= self.limit
+                if hit.any():
+                    fz = self.frozen.setdefault(k, np.full(code.shape, -1, np.int8))
+                    newly = hit & (fz < 0)
+                    fz[newly] = np.where(self.both_ways[k][newly], STICK, status[newly])
+            self.last[k] = code.copy()
+        return self._with_frozen(ctx)
+
+    def _with_frozen(self, ctx):
+        if not self.frozen:
+            return ctx
+        return dataclasses.replace(ctx, freeze_contact={self.watched[k]: v.copy()
+                                                        for k, v in self.frozen.items()})
+
+    def settle(self, ctx, free_states):
+        """After a converged solve with frozen points whose free-law evaluation does not converge:
+        give the frozen points where the free law disagrees the free law's status (held) and
+        return the context for more iterations; None when ``max_rounds`` are used up."""
+        self.rounds += 1
+        if self.rounds > self.max_rounds:
+            return None
+        for k, status, _ in self._states(free_states):
+            fz = self.frozen.get(k)
+            if fz is not None:
+                wrong = (fz >= 0) & (fz != status)
+                fz[wrong] = status[wrong]
+        return self._with_frozen(ctx)
