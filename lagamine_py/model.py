@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from . import kernels, registry
+from . import kernels
 from .core.params import Param
 
 
@@ -165,7 +165,7 @@ CONTROL_PARAMS: tuple[Param, ...] = (
     Param("GROWTH", float, 1.5, (1.0, 10.0), doc="factor applied to dt after an easy increment"),
     Param("EASY", int, 5, (1, 1000), doc="an increment converged in at most this many iterations is easy"),
     Param("LINESEARCH", bool, False, doc="backtracking line search on the energy"),
-    Param("SOLVER", str, "AUTO", choices=lambda: tuple(registry.names("solvers")),
+    Param("SOLVER", str, "AUTO", upper=True,
           doc="sparse linear solver: a registered solver (AUTO, SPLU, PARDISO, or a plugin's)"),
     Param("KERNEL", str, "AUTO", choices=kernels.SETTINGS,
           doc="numba kernels (NUMBA, needs the fast extra), NumPy (NUMPY), or numba from "

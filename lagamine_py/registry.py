@@ -69,9 +69,14 @@ class Entry:
 
 @dataclass
 class Registry:
+    """The plugins by kind and name.  Entry points are imported lazily, one name at a time where
+    the name is an entry point's, every plugin of a kind when a listing (or an alias) needs
+    them: loading a deck imports the plugins it names, not every installed one."""
+
     tables: dict[str, dict[str, Entry]] = field(default_factory=lambda: {k: {} for k in KINDS})
     problems: list[str] = field(default_factory=list)
-    _loaded: bool = False
+    _eps: dict[str, list] = field(default_factory=dict)     # kind -> entry points (not imported)
+    _imported: set = field(default_factory=set)              # (kind, name, value) imported
 
     def add(self, kind: str, name: str, cls: type, origin: str = "") -> None:
         """Register ``cls`` as plugin ``name`` of ``kind``; raises TypeError or ValueError on a
@@ -98,45 +103,64 @@ class Registry:
             raise ValueError(f"{kind} plugin {key} from {origin} clashes with the one from "
                              f"{old.origin}")
 
-    def load(self) -> None:
-        """Import the plugins of every entry-point group (once)."""
-        if self._loaded:
-            return
-        self._loaded = True
-        for kind in KINDS:
-            for ep in metadata.entry_points(group=f"lagamine_py.{kind}"):
-                dist = getattr(ep, "dist", None)
+    def entry_points(self, kind: str) -> list:
+        """The entry points of ``kind`` (read from the installed distributions once)."""
+        if kind not in self._eps:
+            self._eps[kind] = list(metadata.entry_points(group=f"lagamine_py.{kind}"))
+        return self._eps[kind]
+
+    def load(self, kind: str | None = None, name: str | None = None) -> None:
+        """Import the entry points of ``kind`` (every kind when None; those called ``name``
+        only, when given), each once.  A plugin that fails to import or to register is recorded
+        in :attr:`problems`: a broken third-party plugin must not stop the program."""
+        for k in (KINDS if kind is None else (kind,)):
+            for ep in self.entry_points(k):
+                if name is not None and ep.name.upper() != name.upper():
+                    continue
+                key = (k, ep.name, ep.value)
+                if key in self._imported:
+                    continue
+                self._imported.add(key)
+                dist = ep.dist
                 origin = f"{dist.name} {dist.version}" if dist is not None else ep.value
                 try:
-                    self.add(kind, ep.name, ep.load(), origin)
-                except Exception as exc:  # a broken third-party plugin must not stop the program
-                    self.problems.append(f"{kind} plugin {ep.name} ({ep.value}, {origin}) "
+                    self.add(k, ep.name, ep.load(), origin)
+                except Exception as exc:
+                    self.problems.append(f"{k} plugin {ep.name} ({ep.value}, {origin}) "
                                          f"is not usable: {exc}")
 
     def get(self, kind: str, name: str) -> type:
         """The class registered as ``name`` (case-insensitive); KeyError with a did-you-mean."""
-        self.load()
-        entry = self.tables[kind].get(str(name).upper())
+        key = str(name).upper()
+        self.load(kind, key)
+        if key not in self.tables[kind]:
+            self.load(kind)                  # an alias, or unknown: every plugin of the kind
+        entry = self.tables[kind].get(key)
         if entry is None:
             known = sorted(self.tables[kind])
-            raise KeyError(f"unknown {_singular(kind)} {str(name).upper()}"
+            raise KeyError(f"unknown {_singular(kind)} {key}"
                            f"{did_you_mean(name, known)}; installed: {', '.join(known) or '(none)'}")
         return entry.cls
 
     def names(self, kind: str) -> list[str]:
-        """Every name a deck may use, aliases included."""
-        self.load()
+        """Every name a deck may use, aliases included (imports every plugin of the kind)."""
+        self.load(kind)
         return sorted(self.tables[kind])
 
     def canonical(self, kind: str, name: str) -> str:
-        """The plugin's own name for ``name`` (an alias resolved); KeyError as :meth:`get`."""
-        self.get(kind, name)
-        entry = self.tables[kind][str(name).upper()]
+        """The plugin's own name for ``name`` (an alias resolved), without importing it when the
+        name is an entry point's own; KeyError as :meth:`get`."""
+        key = str(name).upper()
+        if key not in self.tables[kind] and any(ep.name.upper() == key
+                                                for ep in self.entry_points(kind)):
+            return key
+        self.get(kind, key)
+        entry = self.tables[kind][key]
         return entry.alias_of or entry.name
 
     def entries(self, kind: str) -> list[Entry]:
         """The plugins of ``kind``, one entry each (aliases left out), by name."""
-        self.load()
+        self.load(kind)
         return [e for n, e in sorted(self.tables[kind].items()) if not e.alias_of]
 
 

@@ -743,8 +743,11 @@ class _Builder:
         given = {pair.key: pair.text for _row, pair in pairs}
         try:
             values = validate_params(_Controls, given)
-        except ParamError as exc:
-            self._param_error(blk, exc, pairs)
+            if "SOLVER" in {k.upper() for k in given}:
+                values["SOLVER"] = registry.canonical("solvers", values["SOLVER"])
+        except (ParamError, KeyError) as exc:
+            self._param_error(blk, ParamError(f"SOLVER={values['SOLVER']}: {exc.args[0]}")
+                              if isinstance(exc, KeyError) else exc, pairs)
             return
         self.step.controls.update({k: v for k, v in values.items() if k.upper() in given})
 
