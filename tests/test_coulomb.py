@@ -12,7 +12,7 @@ import pytest
 
 from lagamine_py.core.errors import ReturnMappingError
 from lagamine_py.core.status import OPEN, SLIP, STICK
-from lagamine_py.laws.contact_point import drive
+from lagamine_py.laws.contact_point import drive_contact_point as drive
 from lagamine_py.laws.coulomb import Coulomb
 from lagamine_py.registry import REGISTRY, ParamError
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from lagamine_py.laws.j2 import J2Linear
-from lagamine_py.laws.material_point import drive, plane_strain_uniaxial, uniaxial_stress
+from lagamine_py.laws.material_point import drive_material_point as drive, plane_strain_uniaxial, uniaxial_stress
 from lagamine_py.laws.ramberg_osgood import RambergOsgood
 
 E, NU = 70e3, 0.25

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from lagamine_py.core.status import STICK
-from lagamine_py.laws.contact_point import drive
+from lagamine_py.laws.contact_point import drive_contact_point as drive
 from lagamine_py.laws.coulomb import Coulomb
 
 from runner import run_deck

@@ -14,7 +14,7 @@ Writes ``docs/data/stability_<study>.csv`` and ``docs/images/stability_<study>.p
 * ``auto``: error against CPU time on the cup for fixed counts 1, 2, 4, 8 and AUTO (SUBTOL =
   0.02, 0.005 rad) over increment sizes: where AUTO beats every fixed count;
 * ``indicator``: the classical against the elastic-predictor loading indicator under softening
-  friction, single point (:func:`lagamine_py.laws.contact_point.drive`) and the Coulomb block
+  friction, single point (:func:`lagamine_py.laws.contact_point.drive_contact_point`) and the Coulomb block
   deck (``block_study.dat``, HB < 0): what the program does with the classical one;
 * ``penalty``: KP and KT across six decades on the Coulomb block: penetration, T error, Newton
   iterations, status;
@@ -38,7 +38,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from accuracy_speed import DOCS, STUDY, run_points  # noqa: E402
 
-from lagamine_py.laws.contact_point import drive  # noqa: E402
+from lagamine_py.laws.contact_point import drive_contact_point as drive  # noqa: E402
 from lagamine_py.laws.coulomb import Coulomb  # noqa: E402
 from lagamine_py.results import read_table  # noqa: E402
 

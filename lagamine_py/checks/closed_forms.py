@@ -60,7 +60,7 @@ from ..results import RunResults
 from .base import (Check, CheckError, contact_points, last_increment, one_contact, rel, result,
                    rows, table)
 
-__all__ = ["Hertz", "Cattaneo", "Coulomb", "Penetration", "UniaxialRambergOsgood", "Lame",
+__all__ = ["Hertz", "Cattaneo", "CoulombSliding", "Penetration", "UniaxialRambergOsgood", "Lame",
            "LimitPressure", "hertz_closed_form", "fit_hertz", "stick_half_width",
            "lame_radial_displacement"]
 
@@ -254,7 +254,7 @@ def check_cattaneo(chk: Cattaneo, run: RunResults) -> dict[str, Any]:
 # ---------------------------------------------------------------- Coulomb, penetration
 
 
-class Coulomb(Check):
+class CoulombSliding(Check):
     """A block sliding whole: the tangential force T = PHI P + B A."""
 
     params = (Param("PHI", float, bounds=(0.0, None), doc="friction coefficient"),

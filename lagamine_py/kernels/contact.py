@@ -33,17 +33,13 @@ from .layout import (COULOMB_B as _B, COULOMB_CLASSICAL as _CLASSICAL, COULOMB_H
                      COULOMB_HPHI as _HPHI, COULOMB_K1 as _K1, COULOMB_K2 as _K2,
                      COULOMB_KP as _KP, COULOMB_KT as _KT, COULOMB_NK as _NK,
                      COULOMB_PHI as _PHI, COULOMB_PREDICTOR as _PREDICTOR, COULOMB_SNAP as _SNAP,
-                     TAN_KEYS)
+                     ON_SURFACE_RTOL as _ON_SURFACE_RTOL, TAN_KEYS)
 from .scalars import nmax as _nmax, nmin as _nmin
 
-__all__ = ["project_points", "contact_group", "TAN_KEYS", "ON_SURFACE_RTOL"]
+__all__ = ["project_points", "face_positions", "contact_group"]
 
 _JIT = dict(cache=True, fastmath=False, error_model="numpy", nogil=True)
 
-#: a point with f >= -this (relative) counts as on the yield surface (the value of
-#: ``lagamine_py.laws.coulomb.ON_SURFACE_RTOL``, which the twin test checks)
-ON_SURFACE_RTOL = 1e-10
-_ON_SURFACE_RTOL = ON_SURFACE_RTOL
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
 
 

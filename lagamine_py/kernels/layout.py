@@ -1,6 +1,6 @@
-"""How laws hand their parameters to the kernels: the layout of the parameter vectors, the law
-kinds and the flags the kernels write.  Plain constants (importing this module does not import
-numba), shared by the kernels and the laws that fill the vectors."""
+"""What laws and their kernel twins share: the layout of the parameter vectors, the law kinds, the
+flags the kernels write and the tolerances both sides use.  Plain constants (importing this
+module does not import numba)."""
 from __future__ import annotations
 
 # -- solid kernel (kernels.solid) ------------------------------------------------------------
@@ -12,8 +12,13 @@ SOLID_K, SOLID_G, SOLID_SIGMAY, SOLID_H, SOLID_A, SOLID_N, SOLID_TOL, SOLID_MAXI
 SOLID_VECTOR = 8
 #: per-element flags written by the solid kernel
 OK, BAD_DET_F, RETURN_MAP_FAILED = 0, 1, 2
+#: J2: relative margin above the current yield stress for a point to count as plastic (a point
+#: re-evaluated at its converged state, a zero increment, stays elastic despite round-off)
+YIELD_RTOL = 1e-12
 
 # -- contact kernel (kernels.contact) --------------------------------------------------------
+#: COULOMB: a point with ``f >= -ON_SURFACE_RTOL (radius + |tau|)`` starts on the yield surface
+ON_SURFACE_RTOL = 1e-10
 #: slots of the COULOMB law vector (12,): penalties, friction and adhesion with their slopes,
 #: the loading indicator, the finite clipping kinks (at most two, their count) and whether a
 #: softening snap-back is possible

@@ -24,17 +24,13 @@ import numpy as np
 from numba import njit
 
 from . import calls
-from .layout import (BAD_DET_F, ELASTIC, J2_LINEAR, OK, RETURN_MAP_FAILED, SOLID_A as _A,
-                     SOLID_G as _G, SOLID_H as _H, SOLID_K as _K, SOLID_MAXIT as _MAXIT,
-                     SOLID_N as _N, SOLID_SIGMAY as _SIGMAY, SOLID_TOL as _TOL)
+from .layout import (BAD_DET_F, ELASTIC, J2_LINEAR, OK, RETURN_MAP_FAILED, YIELD_RTOL,
+                     SOLID_A as _A, SOLID_G as _G, SOLID_H as _H, SOLID_K as _K,
+                     SOLID_MAXIT as _MAXIT, SOLID_N as _N, SOLID_SIGMAY as _SIGMAY,
+                     SOLID_TOL as _TOL)
 from .scalars import nmax as _nmax, nmin as _nmin
 
-__all__ = ["scratch_arrays", "solid_group", "start_group", "OK", "BAD_DET_F",
-           "RETURN_MAP_FAILED", "YIELD_RTOL"]
-
-#: relative margin above the yield stress for a point to count as plastic (the value of
-#: ``lagamine_py.laws.j2.YIELD_RTOL``, which the twin test checks)
-YIELD_RTOL = 1e-12
+__all__ = ["scratch_arrays", "solid_group", "start_group"]
 
 # _nrt=False: no reference counting.  The kernels allocate nothing (the caller passes the work
 # arrays), and without it every array handed to an inlined helper costs atomic increments and

@@ -11,12 +11,12 @@ import numpy as np
 
 from .base import ContactLaw
 
-__all__ = ["drive"]
+__all__ = ["drive_contact_point"]
 
 _FIELDS = ("p", "tau", "lam", "slip", "dissip", "status")
 
 
-def drive(law: ContactLaw, u_path, v_path, substeps: int | None = None,
+def drive_contact_point(law: ContactLaw, u_path, v_path, substeps: int | None = None,
           tangent: bool = False) -> dict[str, np.ndarray]:
     """Drive ``law`` along a piecewise-linear path, splitting each interval in sub-intervals.
 

@@ -79,11 +79,9 @@ from ..core.status import OPEN, SLIP, STICK
 from ..kernels import layout as kl
 from .base import ContactLaw
 
-__all__ = ["Coulomb", "ON_SURFACE_RTOL", "SNAP_BACK"]
+__all__ = ["Coulomb", "SNAP_BACK"]
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
-#: a point with ``f >= -ON_SURFACE_RTOL (radius + |tau|)`` starts on the yield surface
-ON_SURFACE_RTOL = 1e-10
 _ADMISSIBLE_RTOL = 1e-7    # |tau| beyond the cone by more than this (relative): an error
 #: the message of a softening snap-back (the increment is cut back)
 SNAP_BACK = "COULOMB: KT + dB/dlam + p dphi/dlam <= 0 at a slipping point (softening snap-back)"
@@ -206,7 +204,7 @@ class Coulomb(ContactLaw):
               J_tau <- tau_tau J_tau + tau_lam J_lam + tau_d dd + tau_du ddu + tau_v ddv
               J_lam <- lam_tau J_tau + lam_lam J_lam + lam_d dd + lam_du ddu + lam_v ddv
 
-          (``contact_point.drive(..., tangent=True)`` does exactly this).
+          (``contact_point.drive_contact_point(..., tangent=True)`` does exactly this).
         """
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             # masked formulas are evaluated everywhere by np.where; unused lanes may overflow
@@ -327,7 +325,7 @@ class Coulomb(ContactLaw):
         sig_tr = np.where(tau_tr >= 0.0, 1.0, -1.0)
         sig0 = np.where(tau0 != 0.0, np.sign(tau0), np.where(dv_c >= 0.0, 1.0, -1.0))
         # on the surface at the start (a re-contact starts at tau = p = 0: on it iff B = 0)
-        on = contact & (f0 >= -ON_SURFACE_RTOL * (radius0 + abs_tau0))
+        on = contact & (f0 >= -kl.ON_SURFACE_RTOL * (radius0 + abs_tau0))
         indicator = sig0 * kt * dv_c - phi0 * (p1 - p0)        # elastic-predictor rates
         pos_tr = f_tr > 0.0
         if self.indicator == "CLASSICAL":                       # actual (plastic) rates

@@ -22,14 +22,10 @@ import numpy as np
 from ..core.params import Param
 from ..core.tensors import NORMAL as _NORMAL, elastic_matrix, isotropic_moduli
 from ..kernels.layout import (J2_LINEAR, SOLID_G, SOLID_H, SOLID_K, SOLID_SIGMAY,
-                              SOLID_VECTOR)
+                              SOLID_VECTOR, YIELD_RTOL)
 from .base import MaterialLaw
 
-__all__ = ["J2Plasticity", "J2Linear", "YIELD_RTOL"]
-
-# Relative margin above the current yield stress for a point to count as plastic: a point
-# re-evaluated at its converged state (zero increment) stays elastic despite round-off.
-YIELD_RTOL = 1e-12
+__all__ = ["J2Plasticity", "J2Linear"]
 
 _DEV = np.diag([1.0, 1.0, 1.0, 0.5])              # engineering strain -> tensor components
 _DEV[:3, :3] -= 1.0 / 3.0                          # ... and deviatoric part (2G * _DEV = dev. stiffness)

@@ -23,7 +23,7 @@ import numpy as np
 
 from .base import MaterialLaw
 
-__all__ = ["PathResult", "drive", "uniaxial_stress", "plane_strain_uniaxial"]
+__all__ = ["PathResult", "drive_material_point", "uniaxial_stress", "plane_strain_uniaxial"]
 
 
 @dataclass
@@ -47,7 +47,7 @@ def _evaluate(law, eps, eps_p, state):
     return stress[0], D[0], new, bool(np.all(ok))
 
 
-def drive(law: MaterialLaw, strain_path, free, stress_path=None, *, rtol: float = 1e-12,
+def drive_material_point(law: MaterialLaw, strain_path, free, stress_path=None, *, rtol: float = 1e-12,
           max_iter: int = 50) -> PathResult:
     """Drive ``law`` through the increments of a mixed path.
 
@@ -114,9 +114,9 @@ def _eps11_path(eps11_path):
 def uniaxial_stress(law: MaterialLaw, eps11_path, **kw) -> PathResult:
     """Uniaxial stress: ``eps11`` prescribed (k,), ``s22 = s33 = s12 = 0`` (the
     axisymmetric uniaxial test: 1 axial, 2 and 3 radial and hoop)."""
-    return drive(law, _eps11_path(eps11_path), free=(1, 2, 3), **kw)
+    return drive_material_point(law, _eps11_path(eps11_path), free=(1, 2, 3), **kw)
 
 
 def plane_strain_uniaxial(law: MaterialLaw, eps11_path, **kw) -> PathResult:
     """Plane strain uniaxial: ``eps11`` prescribed (k,), ``e33 = 0``, ``s22 = s12 = 0``."""
-    return drive(law, _eps11_path(eps11_path), free=(1, 3), **kw)
+    return drive_material_point(law, _eps11_path(eps11_path), free=(1, 3), **kw)
