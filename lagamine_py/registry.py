@@ -137,6 +137,9 @@ class Registry:
             self.load(kind)                  # an alias, or unknown: every plugin of the kind
         entry = self.tables[kind].get(key)
         if entry is None:
+            broken = [p for p in self.problems if p.startswith(f"{kind} plugin {key} ")]
+            if broken:
+                raise KeyError(broken[0])
             known = sorted(self.tables[kind])
             raise KeyError(f"unknown {_singular(kind)} {key}"
                            f"{did_you_mean(name, known)}; installed: {', '.join(known) or '(none)'}")
