@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .core.exits import EXIT_DECK, EXIT_OK, EXIT_OTHER
 from .results import read_table
 
 # quantity -> (relative tolerance, absolute floor or None for rel * max|ref|)
@@ -222,11 +223,11 @@ def compare_main(run: Path, ref: Path, tol_items: list[str]) -> int:
         tol = parse_tolerances(tol_items)
     except ValueError as exc:
         print(f"lagamine-py compare: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_DECK
     for d in (run, ref):
         if not Path(d).is_dir():
             print(f"lagamine-py compare: {d} is not a directory", file=sys.stderr)
-            return 1
+            return EXIT_OTHER
     rep = compare_dirs(run, ref, tol)
     print(rep.text())
-    return 0 if rep.ok else 1
+    return EXIT_OK if rep.ok else EXIT_OTHER

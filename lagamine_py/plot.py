@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .core.exits import EXIT_DECK, EXIT_OK, EXIT_OTHER
 from .elements import outline_of_cell
 from .results import RunResults, read_table, read_vtu
 
@@ -425,7 +426,7 @@ def plot_run(run: Path, output: Path | None = None, states: str | None = None,
     run = Path(run)
     if not run.is_dir():
         print(f"lagamine-py plot: {run} is not a directory", file=sys.stderr)
-        return 1
+        return EXIT_OTHER
     res = RunResults(run)
     axisym = is_axisymmetric(run) if axes == "auto" else axes == "rz"
     names = _step_names(run)
@@ -436,7 +437,7 @@ def plot_run(run: Path, output: Path | None = None, states: str | None = None,
         mesh_states = _mesh_states(res, states, names)
     except ValueError as exc:
         print(f"lagamine-py plot: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_DECK
     outdir.mkdir(parents=True, exist_ok=True)
     made = [p for p in (plot_interface(res, outdir, chosen, axisym),
                         plot_forces(res, outdir, names),
@@ -445,5 +446,5 @@ def plot_run(run: Path, output: Path | None = None, states: str | None = None,
         print(p)
     if not made:
         print(f"lagamine-py plot: nothing to plot in {run}", file=sys.stderr)
-        return 1
-    return 0
+        return EXIT_OTHER
+    return EXIT_OK
