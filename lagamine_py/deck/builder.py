@@ -10,8 +10,6 @@ no element is inverted or degenerate (det J > 0 at its Gauss points and nodes).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from .. import registry
@@ -21,8 +19,9 @@ from ..model import (CONTROL_PARAMS, OUTPUT_FIELDS, Amplitude, Boundary, CLoad, 
                      ContactSpec, DLoad, ElementBlock, FoundationMotion, FoundationSpec,
                      MaterialSpec, Model, OutputRequest, Step, Surface, Where)
 from .errors import Problems
-from .grammar import Block, Num
+from .grammar import Block, Num, NumberRows
 from .keywords import KEYWORDS, check_data, check_params, data_spec
+from .mesh import ElementGroup, ElementIndex, Files, NodeTable
 
 
 # Keywords whose readable data lines are used even when other lines of the block failed
@@ -40,32 +39,16 @@ def _few(ids, n=8) -> str:
     return ", ".join(ids[:n]) + (f" and {len(ids) - n} more" if len(ids) > n else "")
 
 
-@dataclass
-class _ElementGroup:
-    """Elements of one *ELEMENT or *MESH block (one type)."""
-    type: str
-    cls: type
-    nen: int
-    block: Block
-    ids: list[int] = field(default_factory=list)
-    conn: list[list[int]] = field(default_factory=list)      # node rows
-    lines: list[tuple[str, int]] = field(default_factory=list)
-
-
 class _Builder:
     def __init__(self, name: str, blocks: list[Block], problems: Problems):
         self.pb = problems
         self.blocks = blocks
         self.m = Model(name)
-        self.node_ids: list[int] = []
-        self.coords: list[tuple[float, float]] = []
-        self.row_of: dict[int, int] = {}
-        self.node_at: dict[int, tuple[str, int]] = {}
-        self.groups: list[_ElementGroup] = []
-        self.elem_at: dict[int, tuple[int, int]] = {}            # id -> (group, k)
-        self.nsets: dict[str, list[int]] = {}
-        self.elsets: dict[str, list[int]] = {}
-        self.solid_of: dict[int, int] = {}                          # element id -> solid index
+        self.files = Files()
+        self.nodes = NodeTable(self.files)
+        self.groups: list[ElementGroup] = []
+        self.elements = ElementIndex()                              # id -> (group, k)
+        self.solid_of: list[np.ndarray] = []                        # per group: *SOLID index, -1
         self.solids: list[tuple[Block, dict]] = []
         self.used_materials: set[str] = set()
         self.step: Step | None = None
@@ -78,8 +61,10 @@ class _Builder:
     # ------------------------------------------------------------ helpers
     def _definitions(self) -> dict[tuple[str, str], tuple[str, int, int]]:
         """Where each name is first defined (file, line, block index): a use before it gets
-        "defined later, at ..."; a use after a definition that failed gets no second message."""
+        "defined later, at ..."; a use after a definition that failed gets no second message.
+        Node and element ids go to :attr:`id_blocks` (arrays, see :meth:`_defined`)."""
         out: dict[tuple[str, str], tuple[str, int, int]] = {}
+        self.id_blocks: dict[str, list[tuple[np.ndarray, np.ndarray, str, int]]] = {"NODE": [], "ELEMENT": []}
 
         def put(kind, name, blk):
             if name:
@@ -101,15 +86,32 @@ class _Builder:
                     put(kind, p.get("NAME"), b)
             if b.keyword in ("NODE", "ELEMENT"):
                 for row in b.data:
-                    if row.items and isinstance(row.items[0], Num) and np.isfinite(row.items[0]):
-                        put(b.keyword, str(int(row.items[0])) if row.items[0] == int(row.items[0])
-                            else row.items[0].text, b)
+                    if isinstance(row, NumberRows):
+                        first = row.values[np.cumsum(row.counts) - row.counts]
+                        self.id_blocks[b.keyword].append((first, row.line_numbers(), row.file, index))
+                    elif row.items and isinstance(row.items[0], Num) and np.isfinite(row.items[0]):
+                        self.id_blocks[b.keyword].append((np.array([float(row.items[0])]),
+                                                          np.array([row.line]), row.file, index))
         return out
+
+    def _defined(self, kind: str, name) -> tuple[str, int, int] | None:
+        """Where ``name`` of ``kind`` is first defined: (file, line, block index), or None."""
+        if kind not in ("NODE", "ELEMENT"):
+            return self.later.get((kind, str(name).upper()))
+        try:
+            value = float(name)
+        except (TypeError, ValueError):
+            return None
+        for ids, lines, file, index in self.id_blocks[kind]:
+            hit = np.flatnonzero(ids == value)
+            if len(hit):
+                return file, int(lines[hit[0]]), index
+        return None
 
     def _missing(self, file, line, keyword, kind: str, name, known, prefix: str = "") -> None:
         """Report a name used before (or without) its definition -- unless its definition
         came earlier and already failed (reported there)."""
-        seen = self.later.get((kind, str(name).upper()))
+        seen = self._defined(kind, name)
         if seen is not None and seen[2] < self.index:
             return
         self.pb.add(file, line, keyword, prefix + self._undefined(kind, name, known))
@@ -120,7 +122,7 @@ class _Builder:
         label = {"NSET": "node set", "ELSET": "element set", "SURFACE": "surface", "MATERIAL": "material",
                  "FOUNDATION": "foundation", "CONTACT LAW": "contact law", "AMPLITUDE": "amplitude",
                  "NODE": "node", "ELEMENT": "element"}[kind]
-        later = self.later.get((kind, key))
+        later = self._defined(kind, name)
         if later is not None and later[2] > self.index:
             return (f"{label} {key} is used before it is defined (defined later, at {later[0]}:{later[1]}); "
                     f"define it first")
@@ -153,10 +155,11 @@ class _Builder:
     def _nodes_of(self, blk: Block, row, target) -> np.ndarray | None:
         """Node rows of a node id or node set name."""
         if isinstance(target, int):
-            if target not in self.row_of:
+            rows = self.nodes.rows([target])
+            if rows[0] < 0:
                 self._missing(row.file, row.line, blk.keyword, "NODE", target, ())
                 return None
-            return np.array([self.row_of[target]])
+            return rows
         if target not in self.m.nsets:
             self._missing(row.file, row.line, blk.keyword, "NSET", target, self.m.nsets)
             return None
@@ -241,87 +244,139 @@ class _Builder:
             v = pair.value
             self.m.parameters[pair.key] = float(v) if isinstance(v, Num) else str(v)
 
+    @staticmethod
+    def _table(rows, width: int):
+        """The rows of a bulk keyword as one table: ``(values (k, width) float, NaN where a line
+        has fewer values; counts (k,); files (k,) object; lines (k,))``."""
+        parts = []
+        for item in rows:
+            if isinstance(item, NumberRows):
+                counts = item.counts
+                vals = np.full((len(counts), width), np.nan)
+                fit = np.minimum(counts, width)
+                cols = np.arange(width)
+                mask = cols[None, :] < fit[:, None]
+                starts = np.cumsum(counts) - counts
+                vals[mask] = item.values[(starts[:, None] + cols[None, :])[mask]]
+                parts.append((vals, counts, np.full(len(counts), item.file, object),
+                              item.line_numbers()))
+            else:
+                row, v = item
+                vals = np.full((1, width), np.nan)
+                vals[0, :min(len(v), width)] = v[:width]
+                parts.append((vals, np.array([len(v)]), np.array([row.file], object),
+                              np.array([row.line])))
+        if not parts:
+            return np.zeros((0, width)), np.zeros(0, int), np.zeros(0, object), np.zeros(0, int)
+        return tuple(np.concatenate(p) for p in zip(*parts))
+
     def _kw_node(self, blk, params, rows):
-        new = []
-        for row, vals in rows:
-            nid, x, y = vals[0], vals[1], vals[2]
-            if nid < 1:
-                self.pb.add(row.file, row.line, "NODE", f"node id must be a positive integer, got {nid}")
-                continue
-            if len(vals) > 3 and vals[3] != 0.0:
-                self.pb.add(row.file, row.line, "NODE", f"node {nid}: z = {vals[3]:g}, but the model is 2D "
-                                                        f"(z must be 0 or absent)")
-                continue
-            if nid in self.node_at:
-                f, ln = self.node_at[nid]
-                self.pb.add(row.file, row.line, "NODE", f"duplicate node id {nid} (already defined at {f}:{ln})")
-                continue
-            self.node_at[nid] = (row.file, row.line)
-            self.row_of[nid] = len(self.node_ids)
-            self.node_ids.append(nid)
-            self.coords.append((x, y))
-            new.append(self.row_of[nid])
+        vals, counts, files, lines = self._table(rows, 4)
+        ids = vals[:, 0].astype(np.int64)
+        bad = ids < 1
+        for k in np.flatnonzero(bad):
+            self.pb.add(files[k], lines[k], "NODE", f"node id must be a positive integer, got {ids[k]}")
+        z = np.where(counts > 3, vals[:, 3], 0.0)
+        flat = (z != 0.0) & ~bad
+        for k in np.flatnonzero(flat):
+            self.pb.add(files[k], lines[k], "NODE", f"node {ids[k]}: z = {z[k]:g}, but the model is 2D "
+                                                    f"(z must be 0 or absent)")
+        ok = ~(bad | flat)
+        ok &= ~self._duplicates(ids, ok, files, lines, "NODE", "node",
+                                lambda i: self.nodes.rows(i) >= 0, self._node_at)
+        file_index = np.array([self.files.index(f) for f in files[ok]], np.int64) if ok.any() \
+            else np.zeros(0, np.int64)
+        new = self.nodes.add(ids[ok], vals[ok, 1:3], file_index, lines[ok])
         if params.get("NSET"):
             self._add_nset(params["NSET"], new)
 
+    def _node_at(self, nid: int) -> tuple[str, int]:
+        return self.nodes.where(int(self.nodes.rows([nid])[0]))
+
+    def _element_at(self, eid: int) -> tuple[str, int]:
+        g, k = self.elements.find([eid])
+        return self.groups[int(g[0])].where(self.files, int(k[0]))
+
+    def _duplicates(self, ids, ok, files, lines, keyword, label, exists, first_at) -> np.ndarray:
+        """(k,) mask of ``ids`` already defined (``exists``) or repeated within ``ids`` (after
+        its first), reported with where the first one was defined (``first_at(id)``)."""
+        dup = ok & exists(ids)
+        for k in np.flatnonzero(dup):
+            f, ln = first_at(int(ids[k]))
+            self.pb.add(files[k], lines[k], keyword, f"duplicate {label} id {ids[k]} "
+                                                     f"(already defined at {f}:{ln})")
+        cand = np.flatnonzero(ok & ~dup)
+        _, first = np.unique(ids[cand], return_index=True)
+        again = np.ones(len(cand), bool)
+        again[first] = False
+        if again.any():
+            first_of = {int(ids[cand[i]]): cand[i] for i in first}
+            for i in cand[again]:
+                j = first_of[int(ids[i])]
+                self.pb.add(files[i], lines[i], keyword, f"duplicate {label} id {ids[i]} "
+                                                         f"(already defined at {files[j]}:{lines[j]})")
+            dup[cand[again]] = True
+        return dup
+
     def _add_nset(self, name: str, rows) -> None:
-        cur = self.nsets.setdefault(name, [])
-        seen = set(cur)
-        cur.extend(r for r in rows if not (r in seen or seen.add(r)))
-        self.m.nsets[name] = np.asarray(cur, dtype=int)
+        self.m.nsets[name] = _union(self.m.nsets.get(name), rows)
 
     def _add_elset(self, name: str, ids) -> None:
-        cur = self.elsets.setdefault(name, [])
-        seen = set(cur)
-        cur.extend(i for i in ids if not (i in seen or seen.add(i)))
-        self.m.elsets[name] = np.asarray(cur, dtype=int)
+        self.m.elsets[name] = _union(self.m.elsets.get(name), ids)
 
-    def _new_group(self, blk, type_name) -> _ElementGroup | None:
+    def _new_group(self, blk, type_name) -> ElementGroup | None:
         canonical, cls, nen = self._element_class(blk, type_name)
         if cls is None:
             return None
-        grp = _ElementGroup(canonical, cls, nen, blk)
+        grp = ElementGroup(canonical, cls, nen, blk)
         self.groups.append(grp)
         return grp
 
-    def _add_element(self, grp: _ElementGroup, file: str, line: int, eid: int, nodes) -> bool:
+    def _add_elements(self, grp: ElementGroup, vals, counts, files, lines) -> np.ndarray:
+        """Check and add elements (rows of ``vals``: id, then node ids); their ids."""
         kw = grp.block.keyword
-        if eid < 1:
-            self.pb.add(file, line, kw, f"element id must be a positive integer, got {eid}")
-            return False
-        if eid in self.elem_at:
-            g, k = self.elem_at[eid]
-            f, ln = self.groups[g].lines[k]
-            self.pb.add(file, line, kw, f"duplicate element id {eid} (already defined at {f}:{ln})")
-            return False
-        if len(nodes) != grp.nen:
-            self.pb.add(file, line, kw, f"element {eid}: a {grp.type} element has {grp.nen} nodes, got {len(nodes)}")
-            return False
-        missing = [n for n in nodes if n not in self.row_of]
-        if missing:
-            seen = [self.later.get(("NODE", str(n))) for n in missing]
+        ids = vals[:, 0].astype(np.int64)
+        ok = ids >= 1
+        for k in np.flatnonzero(~ok):
+            self.pb.add(files[k], lines[k], kw, f"element id must be a positive integer, got {ids[k]}")
+        ok &= ~self._duplicates(ids, ok, files, lines, kw, "element",
+                                lambda e: self.elements.find(e)[0] >= 0, self._element_at)
+        wrong = ok & (counts - 1 != grp.nen)
+        for k in np.flatnonzero(wrong):
+            self.pb.add(files[k], lines[k], kw, f"element {ids[k]}: a {grp.type} element has "
+                                                f"{grp.nen} nodes, got {counts[k] - 1}")
+        ok &= ~wrong
+        node_ids = np.where(ok[:, None], np.nan_to_num(vals[:, 1:grp.nen + 1]), 0).astype(np.int64)
+        rows = self.nodes.rows(node_ids)
+        missing = ok & (rows < 0).any(axis=1)
+        for k in np.flatnonzero(missing):
+            absent = node_ids[k][rows[k] < 0].tolist()
+            seen = [self._defined("NODE", n) for n in absent]
             if all(w is not None and w[2] < self.index for w in seen):
-                return False                   # their *NODE lines failed and were reported
+                continue                       # their *NODE lines failed and were reported
             later = any(w is not None and w[2] >= self.index for w in seen)
-            self.pb.add(file, line, kw, f"element {eid} uses node{'s' * (len(missing) > 1)} {_few(missing)} "
-                                        f"that {'are' if len(missing) > 1 else 'is'} not defined"
-                                        + (" before this line" if later else ""))
-            return False
-        if len(set(nodes)) != len(nodes):
-            twice = sorted({n for n in nodes if nodes.count(n) > 1})
-            self.pb.add(file, line, kw, f"element {eid} uses node {_few(twice)} more than once")
-            return False
-        self.elem_at[eid] = (len(self.groups) - 1, len(grp.ids))
-        grp.ids.append(eid)
-        grp.conn.append([self.row_of[n] for n in nodes])
-        grp.lines.append((file, line))
-        return True
+            self.pb.add(files[k], lines[k], kw, f"element {ids[k]} uses node{'s' * (len(absent) > 1)} "
+                                                f"{_few(absent)} that {'are' if len(absent) > 1 else 'is'} "
+                                                f"not defined" + (" before this line" if later else ""))
+        ok &= ~missing
+        srt = np.sort(node_ids, axis=1)
+        twice = ok & (srt[:, 1:] == srt[:, :-1]).any(axis=1)
+        for k in np.flatnonzero(twice):
+            nodes = node_ids[k].tolist()
+            rep = sorted({n for n in nodes if nodes.count(n) > 1})
+            self.pb.add(files[k], lines[k], kw, f"element {ids[k]} uses node {_few(rep)} more than once")
+        ok &= ~twice
+        g = self.groups.index(grp)
+        self.elements.add(g, ids[ok], len(grp))
+        grp.add(ids[ok], rows[ok], np.array([self.files.index(f) for f in files[ok]], np.int64)
+                if ok.any() else np.zeros(0, np.int64), lines[ok])
+        return ids[ok]
 
     def _kw_element(self, blk, params, rows):
         grp = self._new_group(blk, params["TYPE"])
         if grp is None:
             return
-        added = [vals[0] for row, vals in rows if self._add_element(grp, row.file, row.line, vals[0], vals[1:])]
+        added = self._add_elements(grp, *self._table(rows, grp.nen + 1))
         if params.get("ELSET"):
             self._add_elset(params["ELSET"], added)
 
@@ -343,62 +398,79 @@ class _Builder:
             self.pb.at(blk, f"NX={nx}, NY={ny} makes too many nodes")
             return
         mesh = rectangle(grp.cls, params["X0"], params["Y0"], params["LX"], params["LY"], nx, ny)
-        first = max(self.node_ids, default=0) + 1
-        nids = first + np.arange(len(mesh.coords))
-        for nid, (xn, yn) in zip(nids, mesh.coords):
-            self.node_at[int(nid)] = (blk.file, blk.line)
-            self.row_of[int(nid)] = len(self.node_ids)
-            self.node_ids.append(int(nid))
-            self.coords.append((float(xn), float(yn)))
-        eid0 = max(self.elem_at, default=0) + 1
-        eids = eid0 + np.arange(len(mesh.conn))
-        for eid, nodes in zip(eids, nids[mesh.conn]):
-            self._add_element(grp, blk.file, blk.line, int(eid), [int(n) for n in nodes])
-        self._add_elset(name, [int(e) for e in eids])
+        nids = self.nodes.max_id() + 1 + np.arange(len(mesh.coords))
+        node_rows = self.nodes.add(nids, mesh.coords, blk.file, blk.line)
+        eids = self.elements.max_id() + 1 + np.arange(len(mesh.conn))
+        k = len(eids)
+        added = self._add_elements(grp, np.column_stack([eids, nids[mesh.conn]]).astype(float),
+                                   np.full(k, grp.nen + 1), np.full(k, blk.file, object),
+                                   np.full(k, blk.line))
+        self._add_elset(name, added)
         for side in SIDES:
             key = f"{name}_{side}"
-            self._add_nset(key, [self.row_of[int(n)] for n in nids[mesh.side_nodes[side]]])
+            self._add_nset(key, node_rows[mesh.side_nodes[side]])
             if key in self.m.surfaces:
                 self.pb.at(blk, f"surface {key} is already defined")
                 continue
             elems, faces = mesh.side_faces[side]
             self.m.surfaces[key] = Surface(key, eids[elems], faces, blk.where)
 
-    def _set_members(self, blk, rows, kind: str, generate: bool) -> list[int] | None:
-        """Ids (node rows for NSET, element ids for ELSET) listed by a *NSET / *ELSET block."""
+    def _set_members(self, blk, rows, kind: str, generate: bool) -> np.ndarray | None:
+        """Node rows (NSET) or element ids (ELSET) listed by a *NSET / *ELSET block, in order;
+        None after reporting an unknown id or set."""
         out, ok = [], True
-        known_ids = self.row_of if kind == "NSET" else self.elem_at
         sets = self.m.nsets if kind == "NSET" else self.m.elsets
         what = "NODE" if kind == "NSET" else "ELEMENT"
-        for row, vals in rows:
-            if generate:
-                first, last = vals[0], vals[1]
-                step = vals[2] if len(vals) > 2 else 1
-                if step < 1 or last < first:
-                    self.pb.add(row.file, row.line, blk.keyword,
-                                f"GENERATE needs first <= last and step >= 1, got {first}, {last}, {step}")
+        for item in rows:
+            if isinstance(item, NumberRows) and not generate:
+                ids = item.values.astype(np.int64)
+                found = self._members(kind, ids)
+                if (found < 0).any():
+                    k = int(np.flatnonzero(found < 0)[0])
+                    line = int(np.repeat(item.line_numbers(), item.counts)[k])
+                    self._missing(item.file, line, blk.keyword, what, int(ids[k]), ())
                     ok = False
+                out.append(found[found >= 0])
+                continue
+            for row, vals in (item.rows() if isinstance(item, NumberRows) else [item]) \
+                    if not isinstance(item, tuple) else [item]:
+                if isinstance(row, NumberRows):
                     continue
-                if (last - first) // step > 10_000_000:
-                    self.pb.add(row.file, row.line, blk.keyword, "GENERATE range is too large")
-                    ok = False
-                    continue
-                items = list(range(first, last + 1, step))
-            else:
-                items = vals
-            for it in items:
-                if isinstance(it, int):
-                    if it not in known_ids:
-                        self._missing(row.file, row.line, blk.keyword, what, it, ())
+                if generate:
+                    first, last = vals[0], vals[1]
+                    step = vals[2] if len(vals) > 2 else 1
+                    if step < 1 or last < first:
+                        self.pb.add(row.file, row.line, blk.keyword,
+                                    f"GENERATE needs first <= last and step >= 1, got {first}, {last}, {step}")
                         ok = False
-                        break
-                    out.append(self.row_of[it] if kind == "NSET" else it)
-                elif it in sets:
-                    out.extend(int(v) for v in sets[it])
+                        continue
+                    if (last - first) // step > 10_000_000:
+                        self.pb.add(row.file, row.line, blk.keyword, "GENERATE range is too large")
+                        ok = False
+                        continue
+                    items = list(range(first, last + 1, step))
                 else:
-                    self._missing(row.file, row.line, blk.keyword, kind, it, sets)
-                    ok = False
-        return out if ok else None
+                    items = vals
+                for it in items:
+                    if isinstance(it, int):
+                        found = self._members(kind, np.array([it]))
+                        if found[0] < 0:
+                            self._missing(row.file, row.line, blk.keyword, what, it, ())
+                            ok = False
+                            break
+                        out.append(found)
+                    elif it in sets:
+                        out.append(np.asarray(sets[it], np.int64))
+                    else:
+                        self._missing(row.file, row.line, blk.keyword, kind, it, sets)
+                        ok = False
+        return np.concatenate(out) if ok and out else (np.zeros(0, np.int64) if ok else None)
+
+    def _members(self, kind: str, ids: np.ndarray) -> np.ndarray:
+        """Node rows (NSET) or the ids themselves (ELSET) of ``ids``, -1 where undefined."""
+        if kind == "NSET":
+            return self.nodes.rows(ids)
+        return np.where(self.elements.find(ids)[0] >= 0, ids, -1)
 
     def _kw_nset(self, blk, params, rows):
         members = self._set_members(blk, rows, "NSET", bool(params.get("GENERATE")))
@@ -412,7 +484,7 @@ class _Builder:
 
     def _elements_of(self, blk, row, target) -> list[int] | None:
         if isinstance(target, int):
-            if target not in self.elem_at:
+            if target not in self.elements:
                 self._missing(row.file, row.line, blk.keyword, "ELEMENT", target, ())
                 return None
             return [target]
@@ -431,9 +503,10 @@ class _Builder:
             if ids is None:
                 ok = False
                 continue
-            short = [e for e in ids if face > len(self.groups[self.elem_at[e][0]].cls.faces)]
+            groups = self.elements.find(ids)[0]
+            short = [e for e, g in zip(ids, groups) if face > len(self.groups[g].cls.faces)]
             if short:
-                cls = self.groups[self.elem_at[short[0]][0]].cls
+                cls = self.groups[int(self.elements.find([short[0]])[0][0])].cls
                 self.pb.add(row.file, row.line, blk.keyword,
                             f"element {short[0]} ({cls.__name__}) has faces S1..S{len(cls.faces)}, "
                             f"not S{face}")
@@ -493,13 +566,31 @@ class _Builder:
             return
         index = len(self.solids)
         self.solids.append((blk, params))
-        twice = [int(e) for e in self.m.elsets[elset] if int(e) in self.solid_of]
-        if twice:
-            other = self.solids[self.solid_of[twice[0]]][0]
+        ids = np.asarray(self.m.elsets[elset], np.int64)
+        groups, ks = self.elements.find(ids)
+        solid = self._solid_of(groups, ks)
+        twice = ids[solid >= 0]
+        if len(twice):
+            other = self.solids[int(solid[solid >= 0][0])][0]
             self.pb.at(blk, f"element{'s' * (len(twice) > 1)} {_few(twice)} already "
                             f"{'have' if len(twice) > 1 else 'has'} a *SOLID (line {other.line})")
-        for e in self.m.elsets[elset]:
-            self.solid_of.setdefault(int(e), index)
+        for g in np.unique(groups):
+            sel = (groups == g) & (solid < 0)
+            self.solid_of[g][ks[sel]] = index
+
+    def _solid_of(self, groups, ks) -> np.ndarray:
+        """The *SOLID index of elements (group, k) so far, -1 where none (arrays grown to the
+        groups' current sizes)."""
+        while len(self.solid_of) < len(self.groups):
+            self.solid_of.append(np.zeros(0, np.int64))
+        for g, grp in enumerate(self.groups):
+            if len(self.solid_of[g]) < len(grp):
+                self.solid_of[g] = np.concatenate([self.solid_of[g],
+                                                   np.full(len(grp) - len(self.solid_of[g]), -1)])
+        out = np.full(len(groups), -1)
+        for g in np.unique(groups):
+            out[groups == g] = self.solid_of[g][ks[groups == g]]
+        return out
 
     def _kw_foundation(self, blk, params, rows):
         name = params["NAME"]
@@ -561,14 +652,15 @@ class _Builder:
     def _finish_model(self) -> None:
         self.model_done = True
         m = self.m
-        m.node_ids = np.asarray(self.node_ids, dtype=int)
-        m.coords = np.asarray(self.coords, dtype=float).reshape(-1, 2)
+        m.node_ids = self.nodes.ids()
+        m.coords = self.nodes.coords()
         for name, mat in m.materials.items():
             if name not in self.used_materials:
                 self.pb.at(mat.where, f"material {name} is never assigned: no *SOLID uses it")
-        for grp in self.groups:
-            bare = [e for e in grp.ids if e not in self.solid_of]
-            if bare and not self.solid_failed:
+        self._solid_of(np.zeros(0, np.int64), np.zeros(0, np.int64))     # sizes up to date
+        for g, grp in enumerate(self.groups):
+            bare = grp.ids()[self.solid_of[g] < 0]
+            if len(bare) and not self.solid_failed:
                 self.pb.at(grp.block, f"element{'s' * (len(bare) > 1)} {_few(bare)} "
                                       f"{'have' if len(bare) > 1 else 'has'} no *SOLID (no material)")
         self._axisymmetry()
@@ -582,26 +674,26 @@ class _Builder:
             self.pb.at(kinds[True].block, f"axisymmetric elements ({kinds[True].type}) mixed with plane ones "
                                           f"({kinds[False].type}, line {kinds[False].block.line})")
         self.m.axisymmetric = bool(kinds) and list(kinds)[0]
-        if self.m.axisymmetric and len(self.coords):
+        if self.m.axisymmetric and len(self.m.coords):
             r = self.m.coords[:, 0]
             tol = 1e-9 * max(np.ptp(self.m.coords), 1.0)
-            used = np.unique(np.concatenate([np.ravel(g.conn) for g in self.groups if g.conn] or [[]]).astype(int))
+            used = np.unique(np.concatenate([g.conn().ravel() for g in self.groups] or [[]]).astype(int))
             neg = used[r[used] < -tol]
             for row in neg[:5]:
                 nid = int(self.m.node_ids[row])
-                f, ln = self.node_at[nid]
+                f, ln = self.nodes.where(int(row))
                 self.pb.add(f, ln, "NODE", f"node {nid} has r = x = {r[row]:g} < 0 in an axisymmetric model")
 
     def _assemble_blocks(self) -> None:
         """One ElementBlock per (element type, *SOLID), and the Jacobian check."""
         m = self.m
         for s, (sblk, sparams) in enumerate(self.solids):
-            for grp in self.groups:
-                keep = [k for k, e in enumerate(grp.ids) if self.solid_of.get(e) == s]
-                if not keep:
+            for g, grp in enumerate(self.groups):
+                keep = np.flatnonzero(self.solid_of[g] == s)
+                if not len(keep):
                     continue
-                ids = np.asarray([grp.ids[k] for k in keep], int)
-                conn = np.asarray([grp.conn[k] for k in keep], int).reshape(len(keep), grp.nen)
+                ids = grp.ids()[keep]
+                conn = grp.conn()[keep]
                 self._jacobian(grp, keep, ids, conn)
                 m.blocks.append(ElementBlock(grp.type, ids, conn, sparams["MATERIAL"], sparams["THICKNESS"],
                                              sparams["ELSET"], sblk.where))
@@ -611,7 +703,7 @@ class _Builder:
         bad, detj = grp.cls.invalid(self.m.coords[conn])
         bad = np.flatnonzero(bad)
         for k in bad[:10]:
-            f, ln = grp.lines[keep[k]]
+            f, ln = grp.where(self.files, int(keep[k]))
             self.pb.add(f, ln, grp.block.keyword,
                         f"element {ids[k]} is inverted or degenerate (min det J = {detj[k]:.3g} <= 0): "
                         f"give its corners counter-clockwise, then the mid-side nodes")
@@ -750,6 +842,14 @@ class _Builder:
                               if isinstance(exc, KeyError) else exc, pairs)
             return
         self.step.controls.update({k: v for k, v in values.items() if k.upper() in given})
+
+
+def _union(old: np.ndarray | None, new) -> np.ndarray:
+    """``old`` followed by the members of ``new`` not already in it, in order, without repeats."""
+    both = np.concatenate([np.zeros(0, np.int64) if old is None else np.asarray(old, np.int64),
+                           np.asarray(new, np.int64).ravel()])
+    _, first = np.unique(both, return_index=True)
+    return both[np.sort(first)]
 
 
 def _split_param_error(message: str) -> list[str]:

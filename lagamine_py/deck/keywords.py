@@ -14,9 +14,11 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from ..core.params import INT_MAX as _INT_MAX, REQUIRED, Param, validate
 from .errors import Problems
-from .grammar import Block, DataRow, Num, Pair
+from .grammar import Block, DataRow, Num, NumberRows, Pair
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,7 @@ class Keyword:
     data: Data = Data()
     flag_data: tuple[tuple[str, Data], ...] = ()    # data shape when a flag parameter is given
     doc: str = ""
+    bulk: bool = False          # its number lines may stay NumberRows (the builder vectorises)
 
 
 def _name(name: str, required: bool = False, doc: str = "") -> Param:
@@ -67,20 +70,20 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
             doc="parameters: `<name>` in later lines is replaced by the value"),
     Keyword("NODE", "model", (_name("NSET", doc="node set receiving these nodes"),),
             Data("rows", (Col("id", "int"), Col("x"), Col("y"), Col("z", optional=True)), min_lines=1,
-                 doc="`id, x, y` (a z column must be 0)"), doc="nodes"),
+                 doc="`id, x, y` (a z column must be 0)"), doc="nodes", bulk=True),
     Keyword("ELEMENT", "model", (_name("TYPE", True, doc="element type (registry name or alias)"),
                                  _name("ELSET", doc="element set receiving these elements")),
             Data("rows", (Col("id", "int"), Col("node", "int")), repeat=1, min_lines=1,
-                 doc="`id, n1, n2, ...`: corners counter-clockwise, then mid-sides"), doc="elements"),
+                 doc="`id, n1, n2, ...`: corners counter-clockwise, then mid-sides"), doc="elements", bulk=True),
     Keyword("NSET", "model", (_name("NSET", True), Param("GENERATE", flag=True, default=None)),
             Data("rows", (Col("node or nset", "ref"),), repeat=1, min_lines=1, doc="node ids or node set names"),
             (("GENERATE", Data("rows", (Col("first", "int"), Col("last", "int"), Col("step", "int", True)),
-                               min_lines=1, doc="`first, last, step`")),), doc="node set"),
+                               min_lines=1, doc="`first, last, step`")),), doc="node set", bulk=True),
     Keyword("ELSET", "model", (_name("ELSET", True), Param("GENERATE", flag=True, default=None)),
             Data("rows", (Col("element or elset", "ref"),), repeat=1, min_lines=1,
                  doc="element ids or element set names"),
             (("GENERATE", Data("rows", (Col("first", "int"), Col("last", "int"), Col("step", "int", True)),
-                               min_lines=1, doc="`first, last, step`")),), doc="element set"),
+                               min_lines=1, doc="`first, last, step`")),), doc="element set", bulk=True),
     Keyword("MESH", "model", (_name("NAME", True), _name("TYPE", True, doc="element type"),
                               Param("X0", float, 0.0), Param("Y0", float, 0.0),
                               Param("LX", float, gt=0.0), Param("LY", float, gt=0.0),
@@ -196,27 +199,99 @@ def _shape(data: Data) -> str:
     return ", ".join(labels)
 
 
-def check_rows(data: Data, block: Block, problems: Problems) -> tuple[list[tuple[DataRow, list]], bool]:
-    """Rows of converted values (the readable ones) and whether all were (problems reported)."""
+def _wrong_count(data: Data, n: int) -> str | None:
+    """The message for a line of ``n`` values that the data shape does not allow, else None."""
     cols, nrep = data.cols, data.repeat
     nreq = sum(not c.optional for c in cols)
+    if n < nreq or (not nrep and n > len(cols)) or (nrep > 1 and (n - len(cols)) % nrep):
+        want = (f"{nreq}" if nreq == len(cols) else f"{nreq} to {len(cols)}") if not nrep else \
+               f"at least {nreq}" + (f" (then groups of {nrep})" if nrep > 1 else "")
+        return f"wrong number of values: expected {want} ({_shape(data)}), got {n}"
+    return None
+
+
+def _column(data: Data, k: int) -> Col:
+    cols, nrep = data.cols, data.repeat
+    return cols[k] if k < len(cols) else cols[len(cols) - nrep + (k - len(cols)) % nrep]
+
+
+def _check_number_rows(data: Data, nr: NumberRows, keyword: str, problems: Problems):
+    """The lines of ``nr`` checked in bulk against the data shape: ``(good lines as a
+    NumberRows, all good)``, the others reported one by one."""
+    counts, values = nr.counts, nr.values
+    bad_line = np.zeros(len(counts), bool)
+    for n in np.unique(counts):
+        message = _wrong_count(data, int(n))
+        if message:
+            for k in np.flatnonzero(counts == n):
+                problems.add(nr.file, int(nr.line_numbers()[k]), keyword, message)
+            bad_line |= counts == n
+    # the column of every value, from its place on its line
+    starts = np.repeat(np.cumsum(counts) - counts, counts)
+    place = np.arange(values.size) - starts
+    line_of = np.repeat(np.arange(len(counts)), counts)
+    kinds = np.array([_column(data, k).type for k in range(int(counts.max(initial=0)))] or ["float"])
+    kind = kinds[np.minimum(place, len(kinds) - 1)]
+    integral = np.isin(kind, ("int", "ref"))
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(values) | (integral & ((values != np.round(values)) | (np.abs(values) > _INT_MAX)))
+    bad &= ~bad_line[line_of]
+    for v in np.flatnonzero(bad)[:1000]:
+        k, p = int(line_of[v]), int(place[v])
+        tok = nr.raw[k].rstrip(" \t\r,").split(",")[p].strip()
+        try:
+            _convert_cell(_column(data, p), Num(tok))
+            message = f"value {p + 1}: cannot read {tok!r}"
+        except ValueError as exc:
+            message = f"value {p + 1}: {exc}"
+        problems.add(nr.file, int(nr.line_numbers()[k]), keyword, message)
+    bad_line[line_of[bad]] = True
+    if not bad_line.any():
+        return nr, True
+    keep = np.flatnonzero(~bad_line)
+    good = NumberRows(nr.file, nr.line, counts[keep], values[~bad_line[line_of]],
+                      [nr.raw[k] for k in keep], nr.line_numbers()[keep])
+    return good, False
+
+
+def check_rows(data: Data, block: Block, problems: Problems, bulk: bool = False):
+    """Rows of converted values (the readable ones) and whether all were (problems reported).
+
+    Rows are ``(DataRow, values)`` pairs; with ``bulk``, number lines read in bulk stay
+    :class:`~lagamine_py.deck.grammar.NumberRows` (checked in bulk: ints integral, floats
+    finite) for the builder to use as arrays."""
     out, ok = [], True
     for row in block.data:
+        if isinstance(row, NumberRows):
+            if bulk:
+                good, all_good = _check_number_rows(data, row, block.keyword, problems)
+                ok &= all_good
+                if len(good):
+                    out.append(good)
+                continue
+            sub, sub_ok = _check_data_rows(data, row.rows(), block.keyword, problems)
+        else:
+            sub, sub_ok = _check_data_rows(data, [row], block.keyword, problems)
+        out += sub
+        ok &= sub_ok
+    return out, ok
+
+
+def _check_data_rows(data: Data, rows: list[DataRow], keyword: str, problems: Problems):
+    out, ok = [], True
+    for row in rows:
         n = len(row.items)
-        if n < nreq or (not nrep and n > len(cols)) or (nrep > 1 and (n - len(cols)) % nrep):
-            want = (f"{nreq}" if nreq == len(cols) else f"{nreq} to {len(cols)}") if not nrep else \
-                   f"at least {nreq}" + (f" (then groups of {nrep})" if nrep > 1 else "")
-            problems.add(row.file, row.line, block.keyword,
-                         f"wrong number of values: expected {want} ({_shape(data)}), got {n}")
+        message = _wrong_count(data, n)
+        if message:
+            problems.add(row.file, row.line, keyword, message)
             ok = False
             continue
         values, row_ok = [], True
         for k, tok in enumerate(row.items):
-            col = cols[k] if k < len(cols) else cols[len(cols) - nrep + (k - len(cols)) % nrep]
             try:
-                values.append(_convert_cell(col, tok))
+                values.append(_convert_cell(_column(data, k), tok))
             except ValueError as exc:
-                problems.add(row.file, row.line, block.keyword, f"value {k + 1}: {exc}")
+                problems.add(row.file, row.line, keyword, f"value {k + 1}: {exc}")
                 row_ok = False
         if row_ok:
             out.append((row, values))
@@ -227,7 +302,8 @@ def check_rows(data: Data, block: Block, problems: Problems) -> tuple[list[tuple
 def check_pairs(block: Block, problems: Problems) -> list[tuple[DataRow, Pair]] | None:
     """``KEY=VALUE`` items (each with its row); None after reporting non-pairs or repeats."""
     out, seen, ok = [], {}, True
-    for row in block.data:
+    for row in (r for item in block.data
+                for r in (item.rows() if isinstance(item, NumberRows) else [item])):
         for tok in row.items:
             if not isinstance(tok, Pair):
                 problems.add(row.file, row.line, block.keyword,
@@ -251,9 +327,10 @@ def data_spec(spec: Keyword, params: dict[str, Any]) -> Data:
 
 
 def check_data(spec: Keyword, data: Data, block: Block, problems: Problems):
-    """Returns (ok, converted): rows (list of (row, values): the readable rows even when not
-    ok), pairs (list of (row, Pair), None when not ok) or the *HEADING text."""
-    n = len(block.data)
+    """Returns (ok, converted): rows (list of (row, values), or NumberRows for a bulk keyword:
+    the readable rows even when not ok), pairs (list of (row, Pair), None when not ok) or the
+    *HEADING text."""
+    n = sum(len(r) if isinstance(r, NumberRows) else 1 for r in block.data)
     if data.form in ("none", "text"):
         if block.data:
             problems.add(block.data[0].file, block.data[0].line, block.keyword,
@@ -265,14 +342,15 @@ def check_data(spec: Keyword, data: Data, block: Block, problems: Problems):
                            f"({data.doc}), got {n}")
         return False, None
     if data.max_lines is not None and n > data.max_lines:
-        row = block.data[data.max_lines]
-        problems.add(row.file, row.line, block.keyword,
+        lines = [(r.file, r.line + k) for r in block.data
+                 for k in range(len(r) if isinstance(r, NumberRows) else 1)]
+        problems.add(*lines[data.max_lines], block.keyword,
                      f"expected {data.max_lines} data line{'s' * (data.max_lines > 1)} ({data.doc}), got {n}")
         return False, None
     if data.form == "pairs":
         conv = check_pairs(block, problems)
         return conv is not None, conv
-    return check_rows(data, block, problems)[::-1]
+    return check_rows(data, block, problems, spec.bulk)[::-1]
 
 
 # ---------------------------------------------------------------- reference

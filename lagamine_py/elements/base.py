@@ -200,8 +200,14 @@ class Element(Group, Plugin):
         coords = np.asarray(coords, float)
         pts = cls.sample_points()
         _, dN = cls.shape_functions(pts)
-        J = np.einsum("eai,qak->eqik", coords, dN)
-        out = det2(J).min(axis=1)
+        nq, na = len(pts), cls.nen
+        dN_flat = np.ascontiguousarray(dN.transpose(1, 0, 2).reshape(na, nq * 2))   # (a, q k)
+        out = np.empty(len(coords))
+        for lo in range(0, len(coords), 4096):                 # chunks: bounded temporaries
+            X = coords[lo:lo + 4096]
+            # J (e, i, q k) = X^T dN, one BLAS product per chunk
+            J = (np.swapaxes(X, 1, 2) @ dN_flat).reshape(len(X), 2, nq, 2).transpose(0, 2, 1, 3)
+            out[lo:lo + 4096] = det2(J).min(axis=1)
         if cls.axisymmetric:
             gauss, _ = cls.gauss_rule()
             N, _ = cls.shape_functions(gauss)
