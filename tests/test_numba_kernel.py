@@ -31,7 +31,7 @@ from lagamine_py.solver import run                              # noqa: E402
 from lagamine_py.solver.pattern import Pattern                  # noqa: E402
 from runner import DECKS, Capture, is_quadratic                 # noqa: E402
 
-ELEMENTS = ("Q8PE", "Q8AX", "Q8PER", "Q8AXR", "Q4PE", "Q4AX")
+ELEMENTS = ("Q8PE", "Q8AX", "Q8PER", "Q8AXR", "Q4PE", "Q4AX", "T6PE", "T6AX")
 LAWS = {
     "ELASTIC": dict(E=210e3, NU=0.3),
     "J2_LINEAR": dict(E=210e3, NU=0.3, SIGMAY=250.0, H=2000.0),
