@@ -11,9 +11,11 @@ Conventions
   ``coords[r] = (x, y)`` (``(r, z)`` in axisymmetry).  Everything below refers to node *rows*
   (0-based), never to deck ids, except where a field name says ``_ids``.
 * Global DOF of node row ``r``, direction ``c`` (0 = x/r, 1 = y/z) is ``2*r + c``.
-* Element connectivity follows Abaqus CPE8/CAX8: corners counter-clockwise, then mid-sides
-  (5 between 1-2, 6 between 2-3, 7 between 3-4, 8 between 4-1).  Faces S1..S4 are
-  (1,2[,5]), (2,3[,6]), (3,4[,7]), (4,1[,8]).
+* Element connectivity follows Abaqus (CPE8/CAX8, CPE6/CAX6, ...): corners counter-clockwise,
+  then mid-sides; face Sk runs from corner k to corner k+1 (through its mid-side node).  The
+  element class says which node is which (``lagamine_py.elements.base.Element``: ``faces``):
+  Q8 faces S1..S4 are (1,2,5), (2,3,6), (3,4,7), (4,1,8); T6 faces S1..S3 (1,2,4), (2,3,5),
+  (3,1,6).
 * Axisymmetric loads and forces are per radian.
 """
 from __future__ import annotations
@@ -52,10 +54,11 @@ class ElementBlock:
 
 @dataclass
 class Surface:
-    """Element faces: ``elements[k]`` is a deck element id, ``faces[k]`` in 1..4 (S1..S4)."""
+    """Element faces: ``elements[k]`` is a deck element id, ``faces[k]`` its face number 1.. (S1
+    .. S4 on a quadrilateral, S1 .. S3 on a triangle)."""
     name: str
     elements: np.ndarray      # (f,) deck element ids
-    faces: np.ndarray         # (f,) face numbers 1..4
+    faces: np.ndarray         # (f,) face numbers 1..
     where: Where | None = None
 
 

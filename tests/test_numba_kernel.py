@@ -19,6 +19,7 @@ pytest.importorskip("numba")     # the fast extra; CI installs it with the test 
 
 from lagamine_py.deck import load_deck                          # noqa: E402
 from lagamine_py.elements.base import StepContext               # noqa: E402
+from lagamine_py.elements.structured import rectangle           # noqa: E402
 from lagamine_py.core.tensors import von_mises
 from lagamine_py.laws.j2 import J2Linear             # noqa: E402
 from lagamine_py.output import default_writers                  # noqa: E402
@@ -30,7 +31,7 @@ from lagamine_py.solver import run                              # noqa: E402
 from lagamine_py.solver.pattern import Pattern                  # noqa: E402
 from runner import DECKS, Capture, is_quadratic                 # noqa: E402
 
-ELEMENTS = ("Q8PE", "Q8AX", "Q8PER", "Q8AXR", "Q4PE", "Q4AX")
+ELEMENTS = ("Q8PE", "Q8AX", "Q8PER", "Q8AXR", "Q4PE", "Q4AX", "T6PE", "T6AX")
 LAWS = {
     "ELASTIC": dict(E=210e3, NU=0.3),
     "J2_LINEAR": dict(E=210e3, NU=0.3, SIGMAY=250.0, H=2000.0),
@@ -39,34 +40,19 @@ LAWS = {
 RTOL = 1e-11
 
 
-def mesh(nen: int, nx: int = 4, ny: int = 3, seed: int = 0):
+def mesh(cls, nx: int = 4, ny: int = 3, seed: int = 0):
     """Distorted structured mesh of the annulus-like region r in [1, 3] (positive radius for
-    the axisymmetric types): coordinates (n, 2), connectivity (e, nen)."""
+    the axisymmetric types), filled with elements of ``cls`` as ``*MESH`` fills a rectangle
+    (the class's own cells): coordinates (n, 2), connectivity (e, nen)."""
     rng = np.random.default_rng(seed)
-    step = 2 if nen == 8 else 1
-    nxn, nyn = step * nx + 1, step * ny + 1
-    X, Y = np.meshgrid(np.linspace(1.0, 3.0, nxn), np.linspace(0.0, 1.5, nyn))
-    xy = np.c_[X.ravel(), Y.ravel()]
-    xy += 0.04 * rng.uniform(-1, 1, xy.shape)            # distorted, still valid
-    index = np.arange(nxn * nyn).reshape(nyn, nxn)
-    conn = []
-    for j in range(ny):
-        for i in range(nx):
-            a, b = step * i, step * j
-            c = [index[b, a], index[b, a + step], index[b + step, a + step], index[b + step, a]]
-            if nen == 8:
-                c += [index[b, a + 1], index[b + 1, a + 2], index[b + 2, a + 1], index[b + 1, a]]
-            conn.append(c)
-    conn = np.array(conn)
-    used = np.unique(conn)
-    renum = np.full(len(xy), -1)
-    renum[used] = np.arange(len(used))
-    return xy[used], renum[conn]
+    m = rectangle(cls, 1.0, 0.0, 2.0, 1.5, nx, ny)
+    xy = m.coords + 0.04 * rng.uniform(-1, 1, m.coords.shape)    # distorted, still valid
+    return xy, m.conn
 
 
 def setup(etype: str, law_name: str, seed: int = 1, amplitude: float = 0.02):
     cls = get("elements", etype)
-    xy, conn = mesh(cls.nen)
+    xy, conn = mesh(cls)
     law = get("laws", law_name)(**LAWS[law_name])
     group = cls(np.arange(100, 100 + len(conn)), conn, xy, law, 2.0)
     rng = np.random.default_rng(seed)

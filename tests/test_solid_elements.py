@@ -15,7 +15,6 @@ import pytest
 
 from lagamine_py import registry
 from lagamine_py.elements.base import StepContext
-from lagamine_py.elements.quad import Quad4, Quad8
 from lagamine_py.core.tensors import elastic_matrix as hooke_matrix
 from lagamine_py.laws.elastic import LinearElastic
 
@@ -363,18 +362,60 @@ def test_gauss_coords_follow_the_displacement():
 # --------------------------------------------------------------------------------------------
 # contract over every registered element class
 
+#: faces S1, S2, ... of the built-in types as the Abaqus manual lists them (1-based: corner,
+#: corner, mid-side), written out here rather than read from the classes
+ABAQUS_FACES = {
+    "Q4": ((1, 2), (2, 3), (3, 4), (4, 1)),
+    "Q8": ((1, 2, 5), (2, 3, 6), (3, 4, 7), (4, 1, 8)),
+    "T6": ((1, 2, 4), (2, 3, 5), (3, 1, 6)),
+}
+
+
+def left_of(a, b, pts):
+    """Cross product (b - a) x (p - a) of points pts (m, 2): > 0 left of the line a -> b."""
+    d, r = b - a, pts - a
+    return d[0] * r[:, 1] - d[1] * r[:, 0]
+
+
+def shoelace(xy):
+    """Signed area of the polygon xy (m, 2) (positive when counter-clockwise)."""
+    x, y = np.asarray(xy, float).T
+    return 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+
+
 @pytest.mark.parametrize("name", registry.REGISTRY.names("elements"))
 def test_element_contract(name):
+    """Every registered element type, through its own topology (nodes, faces, rule)."""
     cls = registry.get("elements", name)
     assert cls.params == () or all(isinstance(p, registry.Param) for p in cls.params)
-    assert cls.nen in (4, 8)
-    assert tuple(cls.faces) == (Quad8.faces if cls.nen == 8 else Quad4.faces)
+    xi = np.asarray(cls.node_xi, float)
+    assert xi.shape == (cls.nen, 2)
+    canonical = registry.canonical("elements", name)
+    if canonical[:2] in ABAQUS_FACES:                            # the built-ins: Abaqus faces
+        assert tuple(tuple(a + 1 for a in f) for f in cls.faces) == ABAQUS_FACES[canonical[:2]]
+    # the faces close counter-clockwise around the reference element (body on their left), each
+    # corner once; a mid-side node sits in the middle of its (straight) reference edge
+    corners = [f[0] for f in cls.faces]
+    assert [f[1] for f in cls.faces] == corners[1:] + corners[:1]
+    assert len(set(corners)) == len(corners)
+    area = shoelace(xi[corners])
+    assert area > 0
+    for f in cls.faces:
+        if len(f) == 3:
+            assert np.allclose(xi[f[2]], 0.5 * (xi[f[0]] + xi[f[1]]), atol=1e-14)
+    assert sorted(cls.outline) == list(range(cls.nen))
+    assert np.isclose(shoelace(xi[list(cls.outline)]), area)
+    # the Gauss weights add up to the reference area; the rule's points lie inside it
+    gpts, w = cls.gauss_rule()
+    assert np.isclose(w.sum(), area, rtol=1e-14)
+    assert all((left_of(xi[f[0]], xi[f[1]], gpts) > 0).all() for f in cls.faces)
     rng = np.random.default_rng(0)
-    pts = rng.uniform(-1, 1, size=(20, 2))
+    pts = rng.dirichlet(np.ones(cls.nen), size=20) @ xi         # points inside the element
     N, dN = cls.shape_functions(pts)
     assert np.allclose(N.sum(1), 1.0, atol=1e-14)              # partition of unity
     assert np.allclose(dN.sum(1), 0.0, atol=1e-13)
-    Nn, _ = cls.shape_functions(cls.node_xi)
+    assert np.allclose(N @ xi, pts, atol=1e-14)                # isoparametric: x = sum N_a x_a
+    Nn, _ = cls.shape_functions(xi)
     assert np.allclose(Nn, np.eye(cls.nen), atol=1e-14)        # nodal values
     h = 1e-6
     for k in range(2):
@@ -382,13 +423,23 @@ def test_element_contract(name):
         dp[k] = h
         fd = (cls.shape_functions(pts + dp)[0] - cls.shape_functions(pts - dp)[0]) / (2 * h)
         assert np.allclose(dN[..., k], fd, atol=1e-8)
-    good = 0.5 * cls.node_xi + (np.array([2.0, 1.0]) if cls.axisymmetric else 0.0)
+    # recovery: a linear field at the Gauss points comes back exactly at the nodes
+    lin = lambda p: 0.3 + 1.7 * p[:, 0] - 0.9 * p[:, 1]
+    assert np.allclose(cls.recovery_matrix() @ lin(gpts), lin(xi), atol=1e-12)
+    # the Jacobian check samples every face, corners to corners
+    sample = cls.sample_points()
+    for f in cls.faces:
+        a, b = xi[f[0]], xi[f[1]]
+        s = (sample - a) @ (b - a) / ((b - a) @ (b - a))
+        on = np.abs(left_of(a, b, sample)) < 1e-12
+        assert on.sum() >= 5 and np.isclose(s[on].min(), 0) and np.isclose(s[on].max(), 1)
+    good = 0.5 * xi + (np.array([2.0, 1.0]) if cls.axisymmetric else 0.0)
     good = good + 0.05 * rng.normal(size=good.shape)
     inverted = good * np.array([-1.0, 1.0]) + (np.array([6.0, 0.0]) if cls.axisymmetric else 0.0)
     mj = cls.min_jacobian(np.stack([good, inverted]))
     assert mj[0] > 0 and mj[1] < 0
-    # an undistorted element: det J = area / 4 everywhere
-    square = 0.5 * cls.node_xi + 2.0
+    # the reference element scaled by 1/2: det J = 1/4 everywhere
+    square = 0.5 * xi + 2.0
     assert np.isclose(cls.min_jacobian(square[None])[0], 0.25, rtol=1e-12)
     if cls.axisymmetric:
         across_axis = square - np.array([2.2, 0.0])            # a node at r < 0

@@ -1,5 +1,6 @@
-"""The contact element group (paper section 6): CT3 on the 3-node faces of Q8 elements, and its
-linear counterpart on the 2-node faces of Q4 elements, against a rigid parabolic-arc foundation.
+"""The contact element group (paper section 6): CT3 on the 3-node faces of quadratic elements (Q8,
+T6), and its linear counterpart on the 2-node faces of Q4 elements, against a rigid parabolic-arc
+foundation.
 
 Axes: ``f`` face (contact element), ``q`` Gauss point on the face, ``g`` = ``f*nq + q``
 flattened contact point, ``a`` face node (corner, corner[, mid]), ``i``/``j`` spatial
@@ -128,7 +129,7 @@ class ContactGroup(Group):
     face_nodes : (f, nfn) node rows of each face, corner, corner[, mid], in the element's
         counter-clockwise order (the element class's ``faces``).
     elements : (f,) deck ids of the solid elements owning the faces.
-    faces : (f,) face numbers 1..4.
+    faces : (f,) face numbers 1.. (for messages and outputs).
     coords0 : (n, 2) reference coordinates of all nodes.
     foundation : :class:`lagamine_py.foundation.Foundation`.
     foundation_name : str, key of ``ctx.foundation_old/new``.
