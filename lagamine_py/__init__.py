@@ -12,7 +12,7 @@ nothing heavy)::
     totals = lp.read_table("out/press_slide/contact_totals.csv")
 
 Plugin bases (each holds its kind's whole contract): :class:`Element` (with the reference
-shapes :class:`Quad4`, :class:`Quad8` and the isoparametric
+shapes :class:`Quad4`, :class:`Quad8`, :class:`Tri6` and the isoparametric
 :class:`SolidElement`), :class:`MaterialLaw`, :class:`ContactLaw`, :class:`Writer`,
 :class:`LinearSolver`, :class:`Check`; declared parameters :class:`Param`; :func:`register` for a
 plugin defined in a script (packages declare entry points, see ``docs/plugins.md``).
@@ -32,6 +32,7 @@ _EXPORTS = {
     "plugin_names": "lagamine_py.registry",
     "Element": "lagamine_py.elements.base", "SolidElement": "lagamine_py.elements.solid",
     "Quad4": "lagamine_py.elements.quad", "Quad8": "lagamine_py.elements.quad",
+    "Tri6": "lagamine_py.elements.t6",
     "StepContext": "lagamine_py.elements.base", "GroupResult": "lagamine_py.elements.base",
     "CellBlock": "lagamine_py.elements.base", "ContactPoints": "lagamine_py.elements.base",
     "MaterialLaw": "lagamine_py.laws.base", "ContactLaw": "lagamine_py.laws.base",
