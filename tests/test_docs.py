@@ -107,7 +107,7 @@ def _shell_lines(code: str):
             yield line
 
 
-@pytest.mark.parametrize("page, lang, code, line", cases())
+@pytest.mark.parametrize("page, lang, code, line", list(cases()))
 def test_code_block_runs(page, lang, code, line, scratch):
     where = f"{page.relative_to(ROOT)}:{line}"
     if lang == "text":
