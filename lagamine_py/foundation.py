@@ -86,6 +86,17 @@ class Projection:
     dd_de: np.ndarray
 
 
+def _angle(u: np.ndarray, v: np.ndarray) -> float:
+    """Angle (degrees) between two vectors (2,)."""
+    c = float(u @ v) / max(float(np.linalg.norm(u) * np.linalg.norm(v)), 1e-300)
+    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """z-component of the cross product of (..., 2) vectors."""
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
 class Foundation:
     """Rigid chain of 3-point parabolic arcs.
 
@@ -122,6 +133,117 @@ class Foundation:
         self._end = (X2[-1], self.B[-1] + 2 * self.C[-1])     # F_last(1), F_last'(1)
         j = np.arange(self.n_arcs)
         self._cand_arc = np.concatenate([j, j, [0, self.n_arcs - 1]])  # arc of each candidate
+
+    # ------------------------------------------------------------------ validation
+    #: the tangent may not turn by more than this within an arc or at a joint (degrees): more is
+    #: a chain that folds back on itself (a point written out of order, the typo of a sign)
+    MAX_TURN = 150.0
+
+    def shape_problems(self, samples: int = 16) -> list[str]:
+        """What makes the chain unusable as a tool profile, as messages naming the points
+        (1-based, as in the deck): coincident points, an arc that folds (its tangent vanishes
+        or turns back), a joint where the chain doubles back, a chain that closes or crosses
+        itself.  Empty for a good chain."""
+        pts = self.points
+        size = float(np.ptp(pts, axis=0).max()) or 1.0
+        out = []
+        # coincident points (any two, not only neighbours: a closed chain repeats its first)
+        d = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
+        i, j = np.nonzero(np.triu(d <= 1e-9 * size, 1))
+        for a, b in list(zip(i, j))[:5]:
+            out.append(f"points {a + 1} and {b + 1} coincide"
+                       + (": the chain is closed; a tool profile must be open" if (a, b) == (0, len(pts) - 1) else ""))
+        if out:
+            return out
+        s = np.linspace(-1.0, 1.0, 2 * samples + 1)
+        for k in range(self.n_arcs):
+            tang = self.B[k] + 2.0 * self.C[k] * s[:, None]                   # F'(s)
+            speed = np.linalg.norm(tang, axis=1)
+            chord = float(np.linalg.norm(pts[2 * k + 2] - pts[2 * k]))
+            turn = _angle(tang[0], tang[-1])
+            if speed.min() <= 1e-3 * max(chord, 1e-300) or turn > self.MAX_TURN:
+                out.append(f"the arc through points {2 * k + 1}, {2 * k + 2}, {2 * k + 3} folds back "
+                           f"on itself (its tangent turns by {turn:.0f} degrees): a point is out of "
+                           f"order or misplaced")
+        for k in range(self.n_arcs - 1):
+            before = self.B[k] + 2.0 * self.C[k]
+            after = self.B[k + 1] - 2.0 * self.C[k + 1]
+            turn = _angle(before, after)
+            if turn > self.MAX_TURN:
+                out.append(f"the chain doubles back at point {2 * k + 3} (it turns by {turn:.0f} "
+                           f"degrees there)")
+        if not out:
+            out += self._crossings(samples)
+        return out
+
+    def _crossings(self, samples: int) -> list[str]:
+        """Messages for arcs that cross non-adjacent arcs (a chain crossing itself)."""
+        s = np.linspace(-1.0, 1.0, samples + 1)
+        arc = np.repeat(np.arange(self.n_arcs), samples + 1)
+        X, _ = self.evaluate(arc, np.tile(s, self.n_arcs))
+        X = X.reshape(self.n_arcs, samples + 1, 2)
+        a, b = X[:, :-1].reshape(-1, 2), X[:, 1:].reshape(-1, 2)       # segments (m, 2)
+        owner = np.repeat(np.arange(self.n_arcs), samples)
+        out = []
+        for lo in range(0, len(a), 2048):                    # chunks: bounded pair arrays
+            p, r = a[lo:lo + 2048, None], (b - a)[lo:lo + 2048, None]
+            q, t = a[None], (b - a)[None]
+            den = _cross(r, t)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = _cross(q - p, t) / den
+                v = _cross(q - p, r) / den
+            hit = (den != 0) & (u > 1e-9) & (u < 1 - 1e-9) & (v > 1e-9) & (v < 1 - 1e-9)
+            near = np.abs(owner[lo:lo + 2048, None] - owner[None]) <= 1
+            i, j = np.nonzero(hit & ~near)
+            for m, n in zip(i + lo, j):
+                if owner[m] < owner[n]:
+                    out.append(f"the chain crosses itself: the arc through points {2 * owner[m] + 1}-"
+                               f"{2 * owner[m] + 3} crosses the arc through points "
+                               f"{2 * owner[n] + 1}-{2 * owner[n] + 3}")
+                    return out
+        return out
+
+    def side(self, P, normals) -> np.ndarray:
+        """For body points ``P`` (g, 2) with outward normals ``normals`` (g, 2): +1 where the
+        body lies on the left of the chain (the convention), -1 on its right, 0 where it cannot
+        tell (a point beyond the chain's ends).  A point off the chain is judged by the side it
+        stands on; a point on the chain (touching) by its normal, which must face the chain's
+        left normal."""
+        P = np.atleast_2d(np.asarray(P, float))
+        normals = np.atleast_2d(np.asarray(normals, float))
+        arc, s, X, dX = self.closest(P)
+        t = dX / np.linalg.norm(dX, axis=1)[:, None]
+        m = left_normal(t)
+        gap = P - X
+        side = np.einsum("gi,gi->g", gap, m)
+        size = float(np.ptp(self.points, axis=0).max()) or 1.0
+        touching = np.linalg.norm(gap, axis=1) <= 1e-6 * size
+        facing = -np.einsum("gi,gi->g", normals, m)
+        out = np.sign(np.where(touching, facing, side))
+        end = ((arc == 0) & (s <= -1.0)) | ((arc == self.n_arcs - 1) & (s >= 1.0))
+        beyond = end & ~touching & (np.abs(np.einsum("gi,gi->g", gap, t)) > np.abs(side))
+        out[beyond] = 0                                     # beyond an end: cannot tell
+        return out
+
+    def closest(self, P, samples: int = 32):
+        """The point of the chain (arcs only, ends not extended) closest to each of ``P``
+        (g, 2): ``arc`` (g,), ``s`` (g,), the point ``X`` (g, 2) and ``dF/ds`` (g, 2): the
+        nearest of ``samples`` points an arc, refined by Newton on ``s``."""
+        P = np.atleast_2d(np.asarray(P, float))
+        grid = np.linspace(-1.0, 1.0, samples + 1)
+        arcs = np.repeat(np.arange(self.n_arcs), len(grid))
+        X, _ = self.evaluate(arcs, np.tile(grid, self.n_arcs))
+        near = np.argmin(((P[:, None] - X[None]) ** 2).sum(-1), axis=1)
+        arc, s = arcs[near], grid[near % len(grid)]
+        B, C, A = self.B[arc], self.C[arc], self.A[arc]
+        for _ in range(8):                        # minimise |F(s) - P|^2 on the arc
+            F = A + B * s[:, None] + C * s[:, None] ** 2
+            dF = B + 2.0 * C * s[:, None]
+            g = np.einsum("gi,gi->g", dF, F - P)
+            dg = np.einsum("gi,gi->g", 2.0 * C, F - P) + np.einsum("gi,gi->g", dF, dF)
+            s = np.clip(s - g / np.where(dg > 0, dg, np.inf), -1.0, 1.0)
+        X = A + B * s[:, None] + C * s[:, None] ** 2
+        return arc, s, X, B + 2.0 * C * s[:, None]
 
     # ------------------------------------------------------------------ kernels
     def has_kernel(self) -> bool:

@@ -127,9 +127,9 @@ E=1.5E+3, NU=0.25, SIGMA0=10, ALPHA=0.5, N=5
 *SOLID, ELSET=SQ, MATERIAL=STEEL, THICKNESS=2.5
 *SOLID, ELSET=B, MATERIAL=SOFT
 *FOUNDATION, NAME=FLAT
--1, 0
-5, 0
-11, 0
+-1, -1
+5, -1
+11, -1
 *CONTACT LAW, NAME=DRY, TYPE=COULOMB
 KP=1e6, KT=2e6, PHI=0.3
 *CONTACT, SURFACE=B_BOTTOM, FOUNDATION=flat, LAW=DRY, GAUSS=2
@@ -205,7 +205,7 @@ def test_full_deck_model_data(full):
     assert m.materials["SOFT"].params["N"] == 5 and m.materials["SOFT"].params["E"] == 1500.0
     law = m.contact_laws["DRY"]
     assert (law.params["KP"], law.params["KT"], law.params["PHI"], law.params["B"]) == (1e6, 2e6, 0.3, 0.0)
-    np.testing.assert_array_equal(m.foundations["FLAT"].points, [[-1, 0], [5, 0], [11, 0]])
+    np.testing.assert_array_equal(m.foundations["FLAT"].points, [[-1, -1], [5, -1], [11, -1]])
     (c,) = m.contacts
     assert (c.surface, c.foundation, c.law, c.gauss) == ("B_BOTTOM", "FLAT", "DRY", 2)
     amp = m.amplitudes["RAMP"]

@@ -5,6 +5,9 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from pathlib import Path
+
+from lagamine_py.deck import DeckError, load_deck
 from lagamine_py.foundation import Foundation
 
 
@@ -203,3 +206,61 @@ def test_derivatives_match_finite_differences(seed):
         assert np.allclose(pr.dd_de[:, i], fd, atol=1e-7)
         fd = (WAVY.project(P, e, c + dP).d - WAVY.project(P, e, c - dP).d) / (2 * h)
         assert np.allclose(-pr.dd_dP[:, i], fd, atol=1e-7)
+
+
+# ---------------------------------------------------------------- validation of the chain
+
+@pytest.mark.parametrize("points, fragment", [
+    ([[-20, 0], [10, 0], [-1, 0]], "folds back on itself"),           # the typo of issue 14
+    ([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], "the chain is closed"),
+    ([[0, 0], [1, 0], [2, 0], [1, 1e-3], [0, 2e-3]], "doubles back at point 3"),
+    ([[0, 0], [2, 0], [4, 0], [4, 1], [3, 2], [2, 1], [2, -1]], "crosses itself"),
+    ([[0, 0], [1, 0], [2, 0], [3, 1], [0, 0]], "coincide"),
+])
+def test_bad_chains_are_named(points, fragment):
+    problems = Foundation(points).shape_problems()
+    assert problems and fragment in problems[0], problems
+
+
+@pytest.mark.parametrize("points", [
+    [[-20, 0], [10, 0], [40, 0]],
+    [[np.cos(a), np.sin(a)] for a in np.linspace(0.0, 1.5 * np.pi, 9)],     # 3/4 of a circle
+    [[-2, 0.0], [-1, 0.3], [0, 0.1], [1, -0.2], [2, 0.05], [3, 0.1], [4, -0.1]],
+])
+def test_good_chains_pass(points):
+    assert Foundation(points).shape_problems() == []
+
+
+def test_side_of_bodies():
+    """+1 for a body on the left of the direction of travel, -1 on its right; a touching point
+    is judged by its outward normal; beyond an end it cannot tell (0)."""
+    flat = Foundation([[-20, 0], [10, 0], [40, 0]])
+    P = [[0, 1], [5, 0], [50, 1], [0, -1]]
+    n = [[0, -1], [0, -1], [0, -1], [0, 1]]
+    assert flat.side(P, n).tolist() == [1, 1, 0, -1]
+    reverse = Foundation(flat.points[::-1])
+    assert reverse.side(P, n).tolist() == [-1, -1, 0, 1]
+    top = Foundation([[np.cos(a), np.sin(a)] for a in np.linspace(np.pi, 0.0, 9)])   # clockwise
+    assert top.side([[0, 0.5], [0, 1.0]], [[0, 1], [0, 1]]).tolist() == [-1, -1]
+    arc, s, X, _ = top.closest(np.array([[0.0, 2.0]]))
+    assert np.allclose(X, [[0.0, 1.0]], atol=1e-3)                # the top of the circle
+
+
+def test_deck_with_a_folded_or_reversed_foundation_is_refused(tmp_path):
+    """The typo of coulomb_block.dat (last point 40, 0 -> -1, 0) and the same chain written
+    right to left: exit 2 at check, naming the foundation and what to do."""
+    from lagamine_py.cli import main
+    deck = Path(__file__).resolve().parents[1] / "decks" / "coulomb_block.dat"
+    text = deck.read_text()
+    assert "-20, 0\n10, 0\n40, 0\n" in text
+    (tmp_path / "meshes").symlink_to(deck.parent / "meshes")
+    typo = tmp_path / "typo.dat"
+    typo.write_text(text.replace("-20, 0\n10, 0\n40, 0\n", "-20, 0\n10, 0\n-1, 0\n"))
+    reverse = tmp_path / "reverse.dat"
+    reverse.write_text(text.replace("-20, 0\n10, 0\n40, 0\n", "40, 0\n10, 0\n-20, 0\n"))
+    assert main(["check", str(typo)]) == 2
+    assert main(["check", str(reverse)]) == 2
+    with pytest.raises(DeckError, match="folds back on itself"):
+        load_deck(typo)
+    with pytest.raises(DeckError, match="reverse the point order"):
+        load_deck(reverse)

@@ -14,7 +14,10 @@ import numpy as np
 
 from .. import registry
 from ..core.params import ParamError, did_you_mean, validate_params
+from ..core.tensors import right_normal
+from ..elements.edges import surface_faces
 from ..elements.structured import SIDES, rectangle
+from ..foundation import Foundation
 from ..model import (CONTROL_PARAMS, OUTPUT_FIELDS, Amplitude, Boundary, CLoad, ContactLawSpec,
                      ContactSpec, DLoad, ElementBlock, FoundationMotion, FoundationSpec,
                      MaterialSpec, Model, OutputRequest, Step, Surface, Where)
@@ -607,7 +610,11 @@ class _Builder:
             self.pb.add(row.file, row.line, blk.keyword, f"point {same[0] + 2} repeats point {same[0] + 1}: "
                                                          f"the arc is degenerate")
             return
-        self.m.foundations[name] = FoundationSpec(name, pts, blk.where)
+        problems = Foundation(pts, name).shape_problems()
+        for message in problems:
+            self.pb.at(blk, f"foundation {name}: {message}")
+        if not problems:
+            self.m.foundations[name] = FoundationSpec(name, pts, blk.where)
 
     def _kw_contact_law(self, blk, params, pairs):
         name = params["NAME"]
@@ -665,6 +672,27 @@ class _Builder:
                                       f"{'have' if len(bare) > 1 else 'has'} no *SOLID (no material)")
         self._axisymmetry()
         self._assemble_blocks()
+        if not self.pb:
+            self._foundation_sides()
+
+    def _foundation_sides(self) -> None:
+        """Each foundation must have its contact bodies on its left (the direction of travel of
+        its points): a body on its right means the points were written in the wrong order."""
+        for cs in self.m.contacts:
+            spec = self.m.foundations.get(cs.foundation)
+            if spec is None:
+                continue
+            rows, _, _ = surface_faces(self.m, cs.surface)
+            x = self.m.coords[rows]                                    # (f, a, 2)
+            mid = x[:, 2] if rows.shape[1] == 3 else 0.5 * (x[:, 0] + x[:, 1])
+            normal = right_normal(x[:, 1] - x[:, 0])                  # outward: body on the left
+            side = Foundation(spec.points, spec.name).side(mid, normal)
+            if (side < 0).sum() > (side > 0).sum():
+                self.pb.at(cs.where, f"the bodies of surface {cs.surface} lie on the right of "
+                                     f"foundation {spec.name} (at {int((side < 0).sum())} of "
+                                     f"{len(side)} faces): a foundation's points run with the "
+                                     f"body on their left; reverse the point order of *FOUNDATION, "
+                                     f"NAME={spec.name} (line {spec.where.line})")
 
     def _axisymmetry(self) -> None:
         kinds = {}
