@@ -42,8 +42,18 @@ def _parser() -> argparse.ArgumentParser:
     chk.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                      help="override a *PARAMETER value of the deck (repeatable)")
 
-    sub.add_parser("plugins", help="list installed elements, laws, contact laws, writers and solvers "
-                   "with their parameters")
+    plugins = sub.add_parser(
+        "plugins", help="list installed elements, laws, contact laws, writers, solvers and checks "
+        "with their parameters; --check runs their contract checks",
+        description="List the registered plugins of every kind with their distribution and "
+                    "parameters.  With --check, run each plugin's contract checks (tangents "
+                    "against finite differences, patch tests, flushed output ...) and print "
+                    "what passed and what failed, with the numbers; exit status 1 when one "
+                    "failed.")
+    plugins.add_argument("names", nargs="*", metavar="NAME",
+                         help="only these plugins (names as decks write them, any kind)")
+    plugins.add_argument("--check", action="store_true",
+                         help="run the contract checks (lagamine_py.contracts) on the plugins")
 
     cmp_ = sub.add_parser("compare", help="compare a run with an archived reference")
     cmp_.add_argument("run", type=Path)
@@ -165,9 +175,16 @@ def _cmd_run(args) -> int:
 
 def _cmd_plugins(args) -> int:
     from .registry import REGISTRY, KINDS, broken_plugins
+    if args.check:
+        return _check_plugins(args.names)
+    wanted = {n.upper() for n in args.names}
     for kind in KINDS:
+        entries = [e for e in REGISTRY.entries(kind)
+                   if not wanted or e.name in wanted or wanted & {a.upper() for a in e.cls.aliases}]
+        if wanted and not entries:
+            continue
         print(f"{kind}:")
-        for entry in REGISTRY.entries(kind):
+        for entry in entries:
             summary = entry.cls.summary()
             extra = [f"also {', '.join(entry.cls.aliases)}"] if entry.cls.aliases else []
             if entry.replaces:
@@ -179,6 +196,37 @@ def _cmd_plugins(args) -> int:
     for msg in broken_plugins():
         print(f"warning: {msg}", file=sys.stderr)
     return EXIT_OK
+
+
+_KIND_NAMES = {"elements": "element", "laws": "material law", "contact_laws": "contact law",
+               "writers": "writer", "solvers": "solver", "checks": "check"}
+
+
+def _check_plugins(names: list[str]) -> int:
+    """``plugins --check``: the contract suites on the registered plugins, one block per plugin
+    printed as it is done; exit 1 when a check failed, 2 for an unknown name."""
+    from .contracts import check_registered
+    from .registry import broken_plugins
+
+    def show(rep) -> None:
+        print(f"{_KIND_NAMES[rep.kind]} {rep.name} ({rep.origin}): "
+              f"{'passed' if rep.passed else 'FAILED'}")
+        for f in rep.findings:
+            print(f"  {f.verdict:<4}  {f.check}: {f.detail}")
+        sys.stdout.flush()
+
+    try:
+        reports = check_registered(names or None, progress=show)
+    except KeyError as exc:
+        print(f"lagamine-py plugins --check: {exc.args[0]}", file=sys.stderr)
+        return EXIT_DECK
+    failed = [f"{r.kind} {r.name}" for r in reports if not r.passed]
+    problems = broken_plugins()
+    for msg in problems:
+        print(f"warning: {msg}", file=sys.stderr)
+    print(f"{len(reports)} plugin(s) checked: {len(reports) - len(failed)} passed"
+          + (f", {len(failed)} failed ({', '.join(failed)})" if failed else ""))
+    return EXIT_OTHER if failed else EXIT_OK
 
 
 def _cmd_compare(args) -> int:

@@ -288,6 +288,18 @@ def test_lame(tmp_path, factor):
     assert res["error"] == pytest.approx(factor - 1, abs=1e-12)
 
 
+@pytest.mark.parametrize("kind, params", [
+    ("LAME", {"P": 100.0, "E": 2e5, "NU": 0.3}),
+    ("LIMIT_PRESSURE", {"P": 100.0, "SIGMAY": 300.0})])
+def test_tube_checks_refuse_an_inner_radius_not_below_the_outer(tmp_path, kind, params):
+    # B^2 - A^2 and ln(B / A) would be 0 or negative: refused when the check is built (the
+    # deck's `check`), not a ZeroDivisionError when it is evaluated
+    for a, b in ((20.0, 20.0), (30.0, 20.0)):
+        with pytest.raises(registry.ParamError, match="inner radius A .* must be below"):
+            registry.get("checks", kind)(A=a, B=b, **params)
+    registry.get("checks", kind)(A=10.0, B=20.0, **params)
+
+
 def write_sta(d, times, failed_last=False):
     rows = {k: [] for k in ("step", "step_name", "increment", "time", "dt", "iterations", "residual",
                             "cutbacks", "failed", "reason")}

@@ -91,3 +91,19 @@ def test_builtins_are_registered_under_their_deck_names():
     assert "COULOMB" in REGISTRY.names("contact_laws")
     with pytest.raises(KeyError, match="did you mean RAMBERG_OSGOOD"):
         REGISTRY.get("laws", "RAMBERG_OSGUD")
+
+
+def test_example_values_derive_from_the_declarations():
+    # the default when there is one, the first choice, the midpoint of two bounds, one unit
+    # (or the bound's magnitude) inside one bound; nothing for a string without choices
+    assert _Law.example_values() == {"E": 1.0, "NU": 0.3, "SUBSTEPS": 1, "MODE": "A", "LS": False}
+    assert Param("X", float, bounds=(-2.0, 4.0)).example() == 1.0
+    assert Param("X", float, gt=0.5).example() == 1.5
+    assert Param("X", float, bounds=(3.0, None)).example() == 6.0
+    assert Param("X", float, bounds=(None, -1.0)).example() == -2.0
+    assert Param("N", int, gt=0).example() == 1
+    assert Param("N", int, bounds=(1, 3)).example() == 2
+    assert Param("K", str, choices=("AUTO", "NUMPY")).example() == "AUTO"
+    assert Param("NAME", str).example() is None
+    for p in _Law.params:                             # every value passes its own declaration
+        assert p.convert(p.example()) == p.example()

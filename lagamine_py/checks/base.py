@@ -22,8 +22,8 @@ from .. import registry
 from ..core.plugin import Parametrized
 from ..results import RunResults
 
-__all__ = ["Check", "CheckError", "evaluate_checks", "check_columns", "table", "rows",
-           "last_increment", "one_contact", "contact_points", "rel", "result"]
+__all__ = ["Check", "CheckError", "evaluate_checks", "evaluate_check", "check_columns", "table",
+           "rows", "last_increment", "one_contact", "contact_points", "rel", "result"]
 
 
 class CheckError(Exception):
@@ -38,6 +38,8 @@ class Check(Parametrized):
     ``closed_form`` values (same keys where they compare), the relative ``errors`` per quantity
     and the headline ``error`` (:func:`result` builds it); it raises :class:`CheckError` when
     the files at hand cannot answer (the report then says why, with error NaN).
+    ``example_values()`` (:class:`~lagamine_py.core.plugin.Parametrized`) gives the values the
+    contract checks build it from.
     """
 
     def evaluate(self, run: RunResults) -> dict[str, Any]:
@@ -59,17 +61,33 @@ def evaluate_checks(model_checks: list[dict[str, Any]], outdir: Path) -> list[di
     out = []
     for chk in model_checks:
         name, kind = str(chk.get("name", "")), str(chk.get("type", "")).upper()
-        entry = {"name": name or kind, "type": kind, "error": math.nan, "measured": {},
-                 "closed_form": {}, "errors": {}, "message": ""}
         try:
             check = registry.get("checks", kind)(**dict(chk.get("params", {})))
-            entry.update(check.evaluate(run))
-        except (CheckError, KeyError, registry.ParamError) as exc:
+        except (KeyError, registry.ParamError) as exc:
+            entry = _entry(name, kind)
             entry["message"] = str(exc.args[0]) if exc.args else type(exc).__name__
-        except (OSError, IndexError, ValueError, ZeroDivisionError) as exc:
-            entry["message"] = f"{type(exc).__name__}: {exc}"
-        out.append(entry)
+            out.append(entry)
+            continue
+        out.append(evaluate_check(check, run, name, kind))
     return out
+
+
+def evaluate_check(check: Check, run: RunResults, name: str = "", kind: str = "") -> dict[str, Any]:
+    """One built check's entry of :func:`evaluate_checks` (same keys); a check that cannot be
+    evaluated gets ``error`` NaN and the ``message``, it does not raise."""
+    entry = _entry(name, kind)
+    try:
+        entry.update(check.evaluate(run))
+    except (CheckError, KeyError, registry.ParamError) as exc:
+        entry["message"] = str(exc.args[0]) if exc.args else type(exc).__name__
+    except (OSError, IndexError, ValueError, ZeroDivisionError) as exc:
+        entry["message"] = f"{type(exc).__name__}: {exc}"
+    return entry
+
+
+def _entry(name: str, kind: str) -> dict[str, Any]:
+    return {"name": name or kind, "type": kind, "error": math.nan, "measured": {},
+            "closed_form": {}, "errors": {}, "message": ""}
 
 
 def check_columns(results: list[dict[str, Any]]) -> dict[str, Any]:

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.params import Param
+from ..core.params import Param, ParamError
 from ..results import RunResults
 from .base import (Check, CheckError, contact_points, last_increment, one_contact, rel, result,
                    rows, table)
@@ -370,6 +370,12 @@ def lame_radial_displacement(r, P: float, A: float, B: float, E: float, nu: floa
     return (1.0 + nu) * P * A**2 / (E * (B**2 - A**2)) * ((1.0 - 2.0 * nu) * r + B**2 / r)
 
 
+def _inner_below_outer(a: float, b: float) -> None:
+    """A tube's radii: the closed forms divide by ``B^2 - A^2`` or take ``ln(B / A)``."""
+    if not a < b:
+        raise ParamError(f"the inner radius A = {a:g} must be below the outer radius B = {b:g}")
+
+
 class Lame(Check):
     """Elastic thick cylinder under internal pressure: radial displacement of both surfaces."""
 
@@ -378,6 +384,14 @@ class Lame(Check):
               Param("B", float, gt=0.0, unit="length", doc="outer radius"),
               Param("E", float, gt=0.0, unit="stress", doc="Young's modulus"),
               Param("NU", float, bounds=(-1.0, 0.5), doc="Poisson's ratio"))
+
+    def __init__(self, **values):
+        super().__init__(**values)
+        _inner_below_outer(self.a, self.b)
+
+    @classmethod
+    def example_values(cls):
+        return {"P": 100.0, "A": 10.0, "B": 20.0, "E": 210e3, "NU": 0.3}
 
     def evaluate(self, run: RunResults) -> dict[str, Any]:
         return check_lame(self, run)
@@ -404,6 +418,14 @@ class LimitPressure(Check):
               Param("A", float, gt=0.0, unit="length", doc="inner radius"),
               Param("B", float, gt=0.0, unit="length", doc="outer radius"),
               Param("PERIOD", float, 1.0, gt=0.0, doc="time over which the pressure ramps to P"))
+
+    def __init__(self, **values):
+        super().__init__(**values)
+        _inner_below_outer(self.a, self.b)
+
+    @classmethod
+    def example_values(cls):
+        return {"P": 200.0, "SIGMAY": 300.0, "A": 10.0, "B": 20.0}
 
     def evaluate(self, run: RunResults) -> dict[str, Any]:
         return check_limit_pressure(self, run)

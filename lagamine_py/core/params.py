@@ -140,6 +140,41 @@ class Param:
             raise ParamError(f"{self.name} = {value:g} is above its upper bound {high:g}")
         return value
 
+    def example(self) -> Any:
+        """A valid value derived from the declaration alone (the contract checks build plugins
+        from these, see :meth:`~lagamine_py.core.plugin.Parametrized.example_values`): the
+        default when there is one, else the first choice, else a number inside the bounds
+        (their midpoint when both are given, one unit -- or the bound's magnitude -- inside a
+        single bound, 1 when unbounded).  None for an optional parameter without a default and
+        for a string without choices: nothing valid can be told from the declaration."""
+        if self.flag:
+            return False
+        if not self.required:
+            return self.default
+        choices = self.allowed()
+        if choices:
+            return choices[0]
+        if self.type is bool:
+            return False
+        if self.type is str:
+            return None
+        low, high = self.bounds
+        if self.gt is not None:
+            low = self.gt if low is None else max(low, self.gt)
+        if low is not None and high is not None:
+            value = 0.5 * (low + high)
+        elif low is not None:
+            value = low + max(1.0, abs(low))
+        elif high is not None:
+            value = high - max(1.0, abs(high))
+        else:
+            value = 1.0
+        if self.type is int:
+            value = round(value)
+            if self.gt is not None and value <= self.gt:
+                value = math.floor(self.gt) + 1
+        return self.type(value)
+
     def describe(self) -> str:
         """One line for ``lagamine-py plugins``: name, type, unit, default, range, doc."""
         if self.flag:

@@ -43,9 +43,29 @@ class Parametrized(Plugin):
     ``self.values`` (a dict, declared name -> value) and as lower-case attributes (``self.kp``,
     ``self.e`` ...).  A subclass
     checks the constraints between parameters in its ``__init__`` and raises ParamError: the
-    deck builder constructs every law once, so ``check`` refuses what ``run`` would."""
+    deck builder constructs every law once, so ``check`` refuses what ``run`` would.
+
+    :meth:`example_values` gives parameter values the class accepts: the contract checks
+    (:mod:`lagamine_py.contracts`, ``lagamine-py plugins --check``) build the plugin from them.
+    """
 
     def __init__(self, **values: Any):
         self.values = validate_params(type(self), values)
         for k, v in self.values.items():
             setattr(self, k.lower(), v)
+
+    @classmethod
+    def example_values(cls) -> dict[str, Any]:
+        """Parameter values that build a typical instance: ``Cls(**Cls.example_values())``.
+
+        The default derives them from the declarations (:meth:`~.params.Param.example`: the
+        defaults, else the first choice, else a number inside the bounds) and leaves out what
+        cannot be derived (a string without choices).  Override it when those values do not
+        make a sensible instance -- constraints between parameters, a realistic scale (a yield
+        stress well below Young's modulus) -- or when a required string has no choices."""
+        out = {}
+        for p in cls.params:
+            value = p.example()
+            if value is not None and not (p.flag and value is False):
+                out[p.name] = value
+        return out

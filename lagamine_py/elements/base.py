@@ -137,6 +137,18 @@ class Element(Group, Plugin):
     ``grid_order``, ``cell_elements``  how ``*MESH`` fills a rectangle: grid points per cell side
                    (1 linear, 2 quadratic) and the elements of one cell as the grid offsets
                    (i, j) of their nodes.
+
+    Mechanics
+    ---------
+    Built as ``Cls(ids (e,), conn (e, nen), coords0 (n, 2), law, thickness)`` (``law`` a
+    :class:`~lagamine_py.laws.base.MaterialLaw`; ``thickness`` ignored in axisymmetry) and
+    keeping ``ids``, ``conn`` and ``dofs`` (e, 2 nen; DOF ``2 node + i``).  :meth:`compute`
+    returns ``f`` (e, 2 nen) and ``K`` (e, 2 nen, 2 nen) and a state holding the law's arrays
+    (e, q, ...) and ``stress`` (e, q, 4), the Cauchy stress that writers show.
+
+    ``lagamine-py plugins --check`` (:func:`lagamine_py.contracts.check_element`) checks all of
+    this on any topology: shape functions, Gauss rule, faces, outline, Jacobian check, recovery,
+    VTK node order, a patch test, rigid motions and the tangent against finite differences.
     """
 
     params = ()

@@ -25,7 +25,9 @@ class MaterialLaw(Parametrized):
 
     Built as ``Law(**values)`` from the deck's ``*MATERIAL`` data (see
     :class:`~lagamine_py.core.plugin.Parametrized`).  A subclass declares ``params`` and writes
-    :meth:`update`; the rest has defaults.
+    :meth:`update`; the rest has defaults.  ``example_values()`` (from
+    :class:`~lagamine_py.core.plugin.Parametrized`) gives the values the contract checks build
+    the law from: override it with realistic ones (a yield stress well below E, say).
 
     The element computes the trial elastic strain from its kinematics (small strain:
     ``eps - eps_p``; NLGEOM: the Hencky strain ``1/2 ln b_e_trial``) and the law returns the
@@ -33,8 +35,9 @@ class MaterialLaw(Parametrized):
     strain works at large strain unchanged.
     """
 
-    #: rotating the trial strain rotates the stress (and the state) alike: the contract test
-    #: checks objectivity for laws that say so
+    #: rotating the trial strain rotates the stress (and the state) alike: the contract check
+    #: rotates the trial strain and the state's ``eps_e`` (taking the other state arrays as
+    #: invariant scalars) for laws that say so; a law with other tensorial state says False
     isotropic: bool = True
 
     def init_state(self, shape: tuple[int, ...]) -> dict[str, np.ndarray]:
@@ -58,8 +61,10 @@ class MaterialLaw(Parametrized):
         raise NotImplementedError
 
     def elastic_moduli(self) -> tuple[float, float]:
-        """(E, nu) of the elastic part: penalty advice and the contract tests use them.  The
-        default reads the parameters ``E`` and ``NU``; a law declaring others overrides it."""
+        """(E, nu) of the elastic part, the law's initial stiffness (``D`` of a zero trial strain
+        from :meth:`init_state` is Hooke's with them: the contract check compares): penalty
+        advice and the contract checks use them.  The default reads the parameters ``E`` and
+        ``NU``; a law declaring others overrides it."""
         return float(self.values["E"]), float(self.values["NU"])
 
     def kernel_parameters(self):
@@ -105,6 +110,11 @@ class ContactLaw(Parametrized):
     The element reads how to split an increment from :attr:`theta`, :attr:`substeps`,
     :attr:`subtol` and :attr:`submax` (a law declaring parameters of those names overrides the
     defaults below).
+
+    The contract checks (``lagamine-py plugins --check``) build the law from
+    ``example_values()`` (:class:`~lagamine_py.core.plugin.Parametrized`) and compare every
+    tangent entry with central differences of :meth:`update` in open, closing, stick, slip and
+    separating sub-intervals.
     """
 
     #: the arrays of every contact point's state

@@ -32,7 +32,9 @@ def drive_contact_point(law: ContactLaw, u_path, v_path, substeps: int | None = 
         Also return ``dtau_du``, ``dtau_dv``: the derivative of ``tau`` at each path point with
         respect to the increments ``u[i+1] - u[i]``, ``v[i+1] - v[i]`` of the interval ending
         there (state at its start held), chained through the sub-intervals with the law's
-        ``tau_*`` and ``lam_*`` derivatives -- what a contact element does with SUBSTEPS > 1.
+        tangent entries (the contract's keys, a key left out being zero and ``p_d`` defaulting
+        to ``p_u``, as the contact element reads them) -- what a contact element does with
+        SUBSTEPS > 1.
 
     Returns
     -------
@@ -54,21 +56,17 @@ def drive_contact_point(law: ContactLaw, u_path, v_path, substeps: int | None = 
     for i in range(len(u) - 1):                            # time loop, batched over points
         du = (u[i + 1] - u[i]) / n
         dv = (v[i + 1] - v[i]) / n
-        # (d tau, d lam) / (d Du, d Dv) of the interval, chained over its sub-intervals
-        j_tau, j_lam = np.zeros((2, g)), np.zeros((2, g))
+        # (d p, d tau, d lam) / (d Du, d Dv) of the interval, chained over its sub-intervals
+        J = {key: np.zeros((2, g)) for key in ContactLaw.TANGENT_OUT}
         for k in range(1, n + 1):
             d = u[i + 1] if k == n else u[i] + k * du
             state, tan = law.update(state, d, du, dv)
             if tangent:
-                # d_k = u_i + k Du/n, du_k = Du/n, dv_k = Dv/n
-                direct_tau = np.stack([tan["tau_d"] * k / n + tan["tau_du"] / n, tan["tau_v"] / n])
-                direct_lam = np.stack([tan["lam_d"] * k / n + tan["lam_du"] / n, tan["lam_v"] / n])
-                j_tau, j_lam = (tan["tau_tau"] * j_tau + tan["tau_lam"] * j_lam + direct_tau,
-                                tan["lam_tau"] * j_tau + tan["lam_lam"] * j_lam + direct_lam)
+                J = _chain(tan, J, k, n, g)
         for key in _FIELDS:
             out[key].append(np.array(state[key], copy=True))
-        jac["dtau_du"].append(j_tau[0])
-        jac["dtau_dv"].append(j_tau[1])
+        jac["dtau_du"].append(J["tau"][0])
+        jac["dtau_dv"].append(J["tau"][1])
     if tangent:
         out.update(jac)
     res = {k: np.stack(vals) for k, vals in out.items()}
@@ -76,3 +74,23 @@ def drive_contact_point(law: ContactLaw, u_path, v_path, substeps: int | None = 
     if single:
         res = {k: a[:, 0] for k, a in res.items()}
     return res
+
+
+def _entry(tan, out: str, inp: str, g: int) -> np.ndarray:
+    """Tangent entry ``<out>_<inp>`` as (g,): zero when left out, ``p_d`` defaulting to ``p_u``."""
+    c = tan.get(f"{out}_{inp}")
+    if c is None and (out, inp) == ("p", "d"):
+        c = tan.get("p_u")
+    return np.zeros(g) if c is None else np.broadcast_to(np.asarray(c, float), (g,))
+
+
+def _chain(tan, J, k: int, n: int, g: int) -> dict[str, np.ndarray]:
+    """Derivatives (2, g) of (p, tau, lam) w.r.t. the interval's (Du, Dv) after sub-interval
+    ``k`` of ``n``: ``d_k = u_i + k Du / n`` and ``du_k = Du / n`` (the entry ``u`` moves d with
+    du, ``d`` moves d alone), ``dv_k = Dv / n``, plus the old values' dependences."""
+    new = {}
+    for o in ContactLaw.TANGENT_OUT:
+        direct = np.stack([_entry(tan, o, "u", g) / n + _entry(tan, o, "d", g) * (k - 1) / n,
+                           _entry(tan, o, "v", g) / n])
+        new[o] = direct + sum(_entry(tan, o, i, g) * J[i] for i in ContactLaw.TANGENT_OUT)
+    return new

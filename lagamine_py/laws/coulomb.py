@@ -137,6 +137,11 @@ class Coulomb(ContactLaw):
               doc="loading indicator: PREDICTOR (paper); CLASSICAL only to show its failure"),
     )
 
+    @classmethod
+    def example_values(cls):
+        """Friction, adhesion and hardening of both: every tangent entry plays."""
+        return {"KP": 1e5, "KT": 1e5, "PHI": 0.3, "B": 1.0, "HPHI": 0.5, "HB": 10.0}
+
     def __init__(self, **values):
         super().__init__(**values)
         if self.kt + min(self.hb, 0.0) <= 0.0:

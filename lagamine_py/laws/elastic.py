@@ -24,6 +24,10 @@ class LinearElastic(MaterialLaw):
         Param("NU", float, bounds=(-0.999, 0.4999), doc="Poisson's ratio"),
     )
 
+    @classmethod
+    def example_values(cls):
+        return {"E": 200e3, "NU": 0.3}
+
     def __init__(self, **values):
         super().__init__(**values)
         self.D = elastic_matrix(self.e, self.nu)

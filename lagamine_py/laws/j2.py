@@ -115,6 +115,11 @@ class J2Linear(J2Plasticity):
         Param("H", float, 0.0, bounds=(0.0, None), unit="stress",
               doc="hardening modulus d sigma_y / d peeq (0: perfect plasticity)"),
     )
+
+    @classmethod
+    def example_values(cls):
+        return {"E": 200e3, "NU": 0.3, "SIGMAY": 300.0, "H": 2000.0}
+
     def yield_stress(self, peeq):
         return self.values["SIGMAY"] + self.values["H"] * np.asarray(peeq, dtype=float)
 

@@ -17,7 +17,7 @@ Example
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -32,6 +32,8 @@ class PathResult:
 
     ``strain``, ``stress``, ``eps_e`` (k, 4); ``peeq`` (k,); ``iterations`` (k,) local Newton
     iterations; ``converged`` (k,) bool.  Rows after the first failed increment are NaN.
+    ``states``: the law's whole committed state after each converged increment (dicts of
+    arrays of leading shape (1,), every key the law keeps).
     """
     strain: np.ndarray
     stress: np.ndarray
@@ -39,6 +41,7 @@ class PathResult:
     peeq: np.ndarray
     iterations: np.ndarray
     converged: np.ndarray
+    states: list = field(default_factory=list)
 
 
 def _evaluate(law, eps, eps_p, state):
@@ -100,6 +103,7 @@ def drive_material_point(law: MaterialLaw, strain_path, free, stress_path=None, 
             break
         out.strain[k], out.stress[k], out.eps_e[k] = eps, stress, new["eps_e"][0]
         out.peeq[k], out.converged[k] = new["peeq"][0], True
+        out.states.append(new)
         state, eps_n, stress_n = new, eps, stress
     return out
 

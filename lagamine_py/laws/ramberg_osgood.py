@@ -42,6 +42,10 @@ class RambergOsgood(J2Plasticity):
         Param("N", float, bounds=(1.0, None), doc="hardening exponent (>= 1)"),
     )
 
+    @classmethod
+    def example_values(cls):
+        return {"E": 200e3, "NU": 0.3, "SIGMA0": 300.0, "ALPHA": 0.5, "N": 5.0}
+
     #: Newton tolerance on ln q (relative change of the equivalent stress) and iteration cap
     tol = 1e-13
     max_iter = 100

@@ -15,7 +15,8 @@ class says :attr:`Writer.always` -- and calls, in this order:
   happened.
 
 Every writer flushes what it wrote before returning from a hook, so a killed run loses nothing
-that converged.  Resuming a run (``lagamine-py run --restart``), writers are built with
+that converged (``lagamine-py plugins --check`` replays a real run into a writer and checks that
+no file it opened through ``open`` holds unflushed data after any hook).  Resuming a run (``lagamine-py run --restart``), writers are built with
 ``append=True``: they keep what is in the output directory and drop what the interrupted run
 wrote at or after the first resumed increment.
 """
