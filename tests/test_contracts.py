@@ -35,13 +35,7 @@ from lagamine_py.registry import KINDS, REGISTRY
 from lagamine_py.solver.linear import LinearSolver, SpluSolver
 
 #: (kind, name) -> {check: why}: built-ins that fail a contract check, left as they are
-KNOWN_FAILURES = {
-    ("solvers", "PARDISO"): {
-        "singular": "PARDISO perturbs a zero pivot instead of failing; the residual of the "
-                    "solve catches the singular matrix, but the DOFs are then only the rows "
-                    "with a negligible diagonal, and a floating spring has none: the error "
-                    "names no DOF"},
-}
+KNOWN_FAILURES: dict = {}
 
 
 def _registered():

@@ -140,6 +140,17 @@ def _exact_singular_dofs(At: sp.csc_matrix, scale: float) -> np.ndarray:
     return np.union1d(np.flatnonzero(pivots <= 1e3 * shift), _suspects(At.T.tocsr()))
 
 
+def _singular_dofs(A: sp.csr_matrix) -> np.ndarray:
+    """The DOFs a singular ``A`` leaves unrestrained, by SuperLU's pivots (PARDISO perturbs
+    zero pivots instead of naming them): what SPLU would report, found once the matrix is known
+    to be singular."""
+    try:
+        SpluSolver().factor(A)
+    except SingularMatrixError as exc:
+        return exc.dofs
+    return _suspects(A)
+
+
 def _suspects(A: sp.csr_matrix) -> np.ndarray:
     """Rows of ``A`` with a zero or negligible diagonal."""
     d = np.abs(A.diagonal())
@@ -306,7 +317,7 @@ class PardisoSolver(LinearSolver):
             self.factorizations += 1
         except _PardisoError as exc:
             self._release()
-            raise SingularMatrixError(_suspects(A), f"PARDISO: {exc}") from None
+            raise SingularMatrixError(_singular_dofs(A), f"PARDISO: {exc}") from None
 
     def _no_refinement(self) -> None:
         """Keep the defaults the analysis filled in (``iparm[0] = 1``) but no iterative
@@ -324,14 +335,14 @@ class PardisoSolver(LinearSolver):
         try:
             self._pardiso(33, self._data, self._ia, self._ja, b, x)
         except _PardisoError as exc:
-            raise SingularMatrixError(_suspects(self._A), f"PARDISO: {exc}") from None
+            raise SingularMatrixError(_singular_dofs(self._A), f"PARDISO: {exc}") from None
         if not np.all(np.isfinite(x)):
-            raise SingularMatrixError(_suspects(self._A), "PARDISO returned a non-finite solution")
+            raise SingularMatrixError(_singular_dofs(self._A), "PARDISO returned a non-finite solution")
         # PARDISO perturbs zero pivots instead of failing: a singular matrix comes back
         # "solved" with a large residual.  One product with A (cheap next to the factor) tells.
         bnorm = np.linalg.norm(b)
         if np.linalg.norm(self._A @ x - b) > SOLVE_RTOL * bnorm:
-            raise SingularMatrixError(_suspects(self._A), "PARDISO: residual of the solve too "
+            raise SingularMatrixError(_singular_dofs(self._A), "PARDISO: residual of the solve too "
                                       "large (perturbed zero pivots)")
         return x
 
