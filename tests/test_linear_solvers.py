@@ -4,7 +4,7 @@ Every check is an exact invariant (the residual ``|A x - b|`` of the computed so
 agreement of two independent factorisations (SuperLU and MKL PARDISO), on tangents assembled
 from a real deck (press-then-slide: NLGEOM Ramberg-Osgood block, frictional contact, follower
 pressure), so that the matrices have the structure and the conditioning of a run.  PARDISO
-tests are skipped only when ``pypardiso`` cannot be imported (optional extra ``pardiso``).
+tests are skipped only when MKL PARDISO cannot be loaded (optional extra ``pardiso``).
 """
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ from lagamine_py.solver.problem import build_problem
 
 DECKS = Path(__file__).resolve().parents[1] / "decks"
 needs_pardiso = pytest.mark.skipif(not pardiso_available(),
-                                   reason="pypardiso is not importable (optional extra 'pardiso')")
+                                   reason="MKL PARDISO cannot be loaded (optional extra 'pardiso')")
 
 
 @pytest.fixture(scope="module")

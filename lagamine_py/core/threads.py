@@ -1,6 +1,6 @@
 """Thread pools of the numerical libraries: MKL (PARDISO) gets the cores, OpenBLAS one thread.
 
-Two BLAS/OpenMP runtimes live in one process once ``pypardiso`` is imported: numpy's (and
+Two BLAS/OpenMP runtimes live in one process once MKL (PARDISO) is loaded: numpy's (and
 scipy's) OpenBLAS, and MKL with Intel OpenMP.  Left alone, both start one thread per core and
 their idle workers spin-wait after each call, so on a 2-core machine the factorisation and the
 NumPy assembly that follows it steal each other's cores.  The policy:
@@ -9,7 +9,7 @@ NumPy assembly that follows it steal each other's cores.  The policy:
   blocks), far below the size where threads pay off.
 * MKL: all cores, for the PARDISO factorisation (the one big dense-kernel job).
 * Intel OpenMP: ``KMP_BLOCKTIME=0`` (set only if the user did not set it, and only before the
-  runtime loads, i.e. before ``pypardiso`` is imported): the workers sleep as soon as the
+  runtime loads, i.e. before MKL is loaded): the workers sleep as soon as the
   factorisation returns instead of spinning 200 ms on the cores NumPy needs next.
 
 Users override with the usual variables (``MKL_NUM_THREADS``, ``OPENBLAS_NUM_THREADS``,

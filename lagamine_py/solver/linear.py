@@ -159,18 +159,48 @@ def _suspects(A: sp.csr_matrix) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=None)
-def pardiso_available() -> bool:
+def _mkl_pardiso():
+    """MKL's ``pardiso`` function through ctypes, or None when MKL is not installed.
+
+    Looked up once per process, as pypardiso looks it up (``PYPARDISO_MKL_RT``, the library
+    search path, then ``lib*/**/*mkl_rt*`` under the interpreter's prefix and the user base) --
+    pypardiso itself (the package that installs MKL) is not imported: it searches the file tree
+    at import and again in every solver object, 0.1-0.2 s each."""
+    import glob
+    import os
+    import site
+    import sys
+    from ctypes.util import find_library
+
     from ..core.threads import prepare_openmp_env
     prepare_openmp_env()                    # before MKL's OpenMP runtime loads
-    try:
-        import pypardiso  # noqa: F401
-    except Exception:
-        return False
-    return True
+    candidates = [os.environ.get("PYPARDISO_MKL_RT"), find_library("mkl_rt"),
+                  find_library("mkl_rt.1")]
+    candidates = [c for c in candidates if c]
+    if not candidates:                      # where pip puts it first (no tree walk), then the tree
+        found = (glob.glob(f"{sys.prefix}/lib/*mkl_rt*")
+                 or glob.glob(f"{sys.prefix}/[Ll]ib*/**/*mkl_rt*", recursive=True)
+                 or glob.glob(f"{site.USER_BASE}/[Ll]ib*/**/*mkl_rt*", recursive=True))
+        candidates = sorted(found, key=len)
+    for path in candidates:
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        pardiso = lib.pardiso
+        pardiso.restype = None
+        pin_threads()
+        return pardiso
+    return None
+
+
+def pardiso_available() -> bool:
+    """True when MKL PARDISO loads (the optional package pypardiso installs MKL)."""
+    return _mkl_pardiso() is not None
 
 
 class PardisoSolver(LinearSolver):
-    """MKL PARDISO through pypardiso: real non-symmetric mode (mtype 11), or symmetric
+    """MKL PARDISO (installed by pypardiso): real non-symmetric mode (mtype 11), or symmetric
     indefinite (mtype -2, upper triangle, LDL^T: about half the work) when the matrix is
     symmetric to round-off.
 
@@ -192,12 +222,9 @@ class PardisoSolver(LinearSolver):
                                                "installed (pip install 'lagamine_py[pardiso]')")
 
     def __init__(self, symmetric: bool = True):
-        from ..core.threads import prepare_openmp_env
-        prepare_openmp_env()
-        import pypardiso
-        pin_threads()
-        self._ps = pypardiso.PyPardisoSolver(mtype=11)      # loads mkl_rt
-        self._call = self._ps._mkl_pardiso
+        self._call = _mkl_pardiso()
+        if self._call is None:
+            raise KeyError(self.unavailable())
         self.allow_symmetric = bool(symmetric)
         self.pt = np.zeros(64, np.int64)
         self.iparm = np.zeros(64, np.int32)
