@@ -89,6 +89,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("lagamine-py: interrupted", file=sys.stderr)
         return EXIT_OTHER
+    except BrokenPipeError:                 # the reader went away (``| head``): stop quietly
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
 
 
 def _parameters(items: list[str]) -> dict[str, str] | None:
