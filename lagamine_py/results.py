@@ -14,6 +14,19 @@ import numpy as np
 
 TEXT_COLUMNS = {"status", "nset", "contact", "step_name", "failed", "reason"}
 
+#: contact.csv columns that came with the COPEN sign of ``gap`` (positive when open): a table
+#: without them was written with ``gap`` positive for penetration
+COPEN_COLUMNS = ("signed_slip", "slip_increment", "dissipation")
+
+
+def copen_gap(table: dict[str, np.ndarray]) -> np.ndarray:
+    """The ``gap`` column of a contact.csv table in the COPEN convention (positive when open,
+    minus the penetration in contact), whichever convention it was written in: a table without
+    the :data:`COPEN_COLUMNS` was written before the COPEN sign (the archived references of
+    ``decks/reference`` among them), with ``gap`` positive for penetration, and is negated."""
+    gap = np.asarray(table["gap"], float)
+    return gap if COPEN_COLUMNS[0] in table else -gap
+
 
 def read_table(path: Path) -> dict[str, np.ndarray]:
     """A CSV with a header row -> {column: array}; numeric columns as float (int for ids)."""

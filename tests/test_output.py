@@ -76,11 +76,15 @@ def make_result(model, q8, q4, step=1, inc=1, time=0.5, write_fields=True, conta
                        peeq_field(xg4))]
     cps, fnd = [], {}
     if contacts:
+        x0 = rng.normal(size=(3, 2))
         cps = [ContactPoints(name="BOT->TOOL", element=np.array([1, 1, 2]), face=np.array([1, 1, 1]),
-                             gauss=np.array([1, 2, 3]), x=rng.normal(size=(3, 2)), p=rng.normal(size=3) / 3,
-                             tau=rng.normal(size=3) / 7, gap=rng.normal(size=3) * 1e-7, slip=rng.random(3) / 9,
-                             lam=rng.random(3) * np.pi, status=np.array([0, 1, 2], np.int8),
-                             P=float(rng.normal()) / 3, T=float(rng.normal()) / 11)]
+                             gauss=np.array([1, 2, 3]), x=x0 + rng.normal(size=(3, 2)) / 5,
+                             p=rng.normal(size=3) / 3, tau=rng.normal(size=3) / 7,
+                             gap=rng.normal(size=3) * 1e-7, slip=rng.random(3) / 9,
+                             lam=rng.random(3) * np.pi, status=np.array([0, 1, 3], np.int8),
+                             P=float(rng.normal()) / 3, T=float(rng.normal()) / 11, x0=x0,
+                             vp=rng.normal(size=3) / 13, dvp=rng.normal(size=3) / 17,
+                             dissip=rng.random(3) / 19, E=float(rng.random()) / 23)]
         xs = np.linspace(-2, 2, 5)
         fnd = {"TOOL": np.column_stack([xs + time, 0.1 * xs**2 - 1])}
     return IncrementResult(step=step, step_name="LOAD", increment=inc, time=time, step_time=time, dt=0.25,
@@ -208,22 +212,27 @@ def test_pvd_lists_every_file_with_increasing_time(run):
 def test_contact_tables(run):
     out, _, results, _ = run
     header, rows = read_csv(out / "contact.csv")
-    # DECKS.md's columns, then the pair (an extension: decks with several contact pairs)
-    assert header == "step,increment,time,element,gauss,x,y,p,tau,gap,slip,lambda,status,contact".split(",")
+    # DECKS.md's columns, then the pair (an extension: decks with several contact pairs), then
+    # the signed slip, its increment and the dissipation, appended (older readers keep working)
+    assert header == ("step,increment,time,element,gauss,x,y,p,tau,gap,slip,lambda,status,contact,"
+                      "signed_slip,slip_increment,dissipation").split(",")
     assert [(int(r[0]), int(r[1])) for r in rows] == [(1, 1)] * 3 + [(1, 3)] * 3   # output increments only
     for r, rows3 in ((results[0], rows[:3]), (results[2], rows[3:])):
         cp = r.contacts[0]
         got = np.array([[float(v) for v in row[5:12]] for row in rows3])
         want = np.column_stack([cp.x, cp.p, cp.tau, cp.gap, cp.slip, cp.lam])
         assert np.array_equal(got, want)                       # full precision
+        got = np.array([[float(v) for v in row[14:17]] for row in rows3])
+        assert np.array_equal(got, np.column_stack([cp.vp, cp.dvp, cp.dissip]))
         assert [float(row[2]) for row in rows3] == [r.time] * 3
         assert [(int(row[3]), int(row[4])) for row in rows3] == [(1, 1), (1, 2), (2, 3)]
-        assert [row[12] for row in rows3] == ["open", "stick", "slip"]
+        assert [row[12] for row in rows3] == ["open", "stick", "none"]
         assert [row[13] for row in rows3] == ["BOT->TOOL"] * 3
     header, rows = read_csv(out / "contact_totals.csv")
-    assert header == ["step", "increment", "time", "contact", "P", "T"]
+    assert header == ["step", "increment", "time", "contact", "P", "T", "dissipated_energy"]
     assert [(int(r[1]), r[3]) for r in rows] == [(1, "BOT->TOOL"), (2, "BOT->TOOL"), (3, "BOT->TOOL")]
-    assert [(float(r[4]), float(r[5])) for r in rows] == [(x.contacts[0].P, x.contacts[0].T) for x in results]
+    assert [tuple(map(float, r[4:7])) for r in rows] == [(x.contacts[0].P, x.contacts[0].T, x.contacts[0].E)
+                                                         for x in results]
 
 
 def test_reactions_table(run):
