@@ -219,6 +219,7 @@ class Model:
     axisymmetric: bool = False
     parameters: dict[str, Any] = field(default_factory=dict)        # *PARAMETER values
     checks: list[dict[str, Any]] = field(default_factory=list)      # *CHECK requests
+    units: tuple[str, ...] = ()           # *UNITS: names of the length, force, stress units
 
     @property
     def ndof(self) -> int:
