@@ -9,7 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .core.exits import EXIT_DECK, EXIT_OK, EXIT_OTHER
+from .core.exits import EXIT_DECK, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -76,9 +76,9 @@ def main(argv: list[str] | None = None) -> int:
                "compare": _cmd_compare, "plot": _cmd_plot, "sweep": _cmd_sweep}[args.command]
     try:
         return handler(args)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:            # outside a run's steps (a run reports it itself)
         print("lagamine-py: interrupted", file=sys.stderr)
-        return EXIT_OTHER
+        return EXIT_INTERRUPTED
 
 
 def _parameters(items: list[str]) -> dict[str, str] | None:
@@ -160,6 +160,8 @@ def _cmd_run(args) -> int:
                   progress=not args.quiet)
     stream = sys.stdout if outcome.status == EXIT_OK else sys.stderr
     print(f"lagamine-py: {outcome.message}", file=stream)
+    for line in outcome.summary:
+        print(f"  {line}", file=stream)
     return outcome.status
 
 

@@ -146,8 +146,10 @@ class FoundationMotion:
 
 
 #: ``*OUTPUT, FIELDS=`` names: what the VTK body files carry besides the mesh and the ids
-OUTPUT_FIELDS = {"U": "displacement", "S": "stress (components and von Mises)",
-                 "PEEQ": "equivalent plastic strain", "RF": "reaction forces"}
+OUTPUT_FIELDS = {"U": "displacement", "S": "stress (tensor, von Mises, pressure)",
+                 "LE": "total strain (logarithmic under NLGEOM, small strain otherwise)",
+                 "PE": "plastic strain", "PEEQ": "equivalent plastic strain",
+                 "RF": "reaction forces"}
 
 
 @dataclass

@@ -143,8 +143,8 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
             doc="rigid translation of a foundation reached at the step end"),
     Keyword("OUTPUT", "step", (Param("FREQUENCY", int, 1, bounds=(1, None)),
                                Param("FIELDS", str, None,
-                                     doc="fields of the VTK body files: U, S, PEEQ, RF, separated "
-                                         "by / or spaces (default all)"),
+                                     doc="fields of the VTK body files: U, S, LE, PE, PEEQ, RF, "
+                                         "separated by / or spaces (default all)"),
                                Param("CONTACT", bool, True),
                                Param("WRITERS", str, None,
                                      doc="registered writers, separated by / (default: the "
