@@ -60,6 +60,12 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument("--axes", choices=("auto", "xy", "rz"), default="auto",
                       help="rz draws z horizontal and r vertical (default: rz when the run's deck is "
                            "axisymmetric)")
+    plot.add_argument("--xlim", metavar="MIN,MAX",
+                      help="abscissa range of interface.png (default: zoomed on the closed contact "
+                           "zone when it is a small part of the interface)")
+    plot.add_argument("--scale", type=float, metavar="FACTOR",
+                      help="factor of the displacements in mesh.png (default: chosen so that the "
+                           "deformation shows; 1 for the true shape)")
 
     sweep = sub.add_parser("sweep", help="run a deck over a grid of *PARAMETER values")
     sweep.add_argument("deck", type=Path)
@@ -190,7 +196,7 @@ def _cmd_compare(args) -> int:
 
 def _cmd_plot(args) -> int:
     from .plot import plot_run
-    return plot_run(args.run, args.output, args.states, args.axes)
+    return plot_run(args.run, args.output, args.states, args.axes, args.xlim, args.scale)
 
 
 def _cmd_sweep(args) -> int:
