@@ -44,7 +44,8 @@ _EXPORTS = {
     "ReturnMappingError": "lagamine_py.core.errors",
     "SingularMatrixError": "lagamine_py.core.errors",
     "OPEN": "lagamine_py.core.status", "STICK": "lagamine_py.core.status",
-    "SLIP": "lagamine_py.core.status", "STATUS_NAMES": "lagamine_py.core.status",
+    "SLIP": "lagamine_py.core.status", "NONE": "lagamine_py.core.status",
+    "STATUS_NAMES": "lagamine_py.core.status",
     # running decks and reading results
     "load_deck": "lagamine_py.deck", "DeckError": "lagamine_py.deck", "Model": "lagamine_py.model",
     "run": "lagamine_py.solver.steps", "Outcome": "lagamine_py.solver.steps",

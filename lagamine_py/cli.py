@@ -9,7 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .core.exits import EXIT_DECK, EXIT_OK, EXIT_OTHER
+from .core.exits import EXIT_DECK, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -70,6 +70,12 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument("--axes", choices=("auto", "xy", "rz"), default="auto",
                       help="rz draws z horizontal and r vertical (default: rz when the run's deck is "
                            "axisymmetric)")
+    plot.add_argument("--xlim", metavar="MIN,MAX",
+                      help="abscissa range of interface.png (default: zoomed on the closed contact "
+                           "zone when it is a small part of the interface)")
+    plot.add_argument("--scale", type=float, metavar="FACTOR",
+                      help="factor of the displacements in mesh.png (default: chosen so that the "
+                           "deformation shows; 1 for the true shape)")
 
     sweep = sub.add_parser("sweep", help="run a deck over a grid of *PARAMETER values")
     sweep.add_argument("deck", type=Path)
@@ -86,9 +92,9 @@ def main(argv: list[str] | None = None) -> int:
                "compare": _cmd_compare, "plot": _cmd_plot, "sweep": _cmd_sweep}[args.command]
     try:
         return handler(args)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:            # outside a run's steps (a run reports it itself)
         print("lagamine-py: interrupted", file=sys.stderr)
-        return EXIT_OTHER
+        return EXIT_INTERRUPTED
     except BrokenPipeError:                 # the reader went away (``| head``): stop quietly
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -174,6 +180,8 @@ def _cmd_run(args) -> int:
                   progress=not args.quiet)
     stream = sys.stdout if outcome.status == EXIT_OK else sys.stderr
     print(f"lagamine-py: {outcome.message}", file=stream)
+    for line in outcome.summary:
+        print(f"  {line}", file=stream)
     return outcome.status
 
 
@@ -240,7 +248,7 @@ def _cmd_compare(args) -> int:
 
 def _cmd_plot(args) -> int:
     from .plot import plot_run
-    return plot_run(args.run, args.output, args.states, args.axes)
+    return plot_run(args.run, args.output, args.states, args.axes, args.xlim, args.scale)
 
 
 def _cmd_sweep(args) -> int:

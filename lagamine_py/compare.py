@@ -6,10 +6,20 @@ What is compared (the text tables of the output contract, present in both direct
 file                        row key                               quantities
 ==========================  ====================================  ==========================
 contact.csv                 step, increment, element, gauss       p, tau, gap, slip, lambda, status
-contact_totals.csv          step, increment, contact              P, T
+                                                                  (signed_slip, slip_increment,
+                                                                  dissipation)
+contact_totals.csv          step, increment, contact              P, T (dissipated_energy)
 reactions.csv               step, increment, nset                 RF1, RF2
 displacements.csv           step, node                            u1, u2
 ==========================  ====================================  ==========================
+
+Quantities in parentheses are compared when both tables have them (older tables do not).
+``gap`` is compared in the COPEN convention (positive when open): a contact.csv written before
+it (without the ``signed_slip`` column, :data:`lagamine_py.results.COPEN_COLUMNS`) had
+``gap`` positive for penetration and NaN where the normal missed the foundation, with status
+``open``; it is read as ``-gap`` and, where the gap is NaN, status ``none``.  The gap of a
+``none`` point (a distance to the foundation in newer tables, NaN in older ones) is not
+compared; its status is.
 
 A value passes when ``|run - ref| <= max(rel * |ref|, abs)``; ``abs`` defaults to ``rel`` times the
 largest magnitude of that quantity in the reference (an absolute floor near zero, as MOOSE's csvdiff
@@ -26,26 +36,32 @@ from pathlib import Path
 import numpy as np
 
 from .core.exits import EXIT_DECK, EXIT_OK, EXIT_OTHER
-from .results import read_table
+from .results import COPEN_COLUMNS, copen_gap, read_table
 
 # quantity -> (relative tolerance, absolute floor or None for rel * max|ref|)
 DEFAULT_TOL: dict[str, tuple[float, float | None]] = {
     "p": (1e-6, None), "tau": (1e-6, None), "gap": (1e-6, None), "slip": (1e-6, None),
-    "lambda": (1e-6, None), "P": (1e-6, None), "T": (1e-6, None),
+    "lambda": (1e-6, None), "signed_slip": (1e-6, None), "slip_increment": (1e-6, None),
+    "dissipation": (1e-6, None), "P": (1e-6, None), "T": (1e-6, None),
+    "dissipated_energy": (1e-6, None),
     "RF1": (1e-6, None), "RF2": (1e-6, None), "u1": (1e-6, None), "u2": (1e-6, None),
 }
 
+#: (file, row key, quantities, text column, quantities compared when both tables have them)
 TABLES = (
-    ("contact.csv", ("element", "gauss"), ("p", "tau", "gap", "slip", "lambda"), "status"),
-    ("contact_totals.csv", ("contact",), ("P", "T"), None),
-    ("reactions.csv", ("nset",), ("RF1", "RF2"), None),
-    ("displacements.csv", ("node",), ("u1", "u2"), None),
+    ("contact.csv", ("element", "gauss"), ("p", "tau", "gap", "slip", "lambda"), "status",
+     ("signed_slip", "slip_increment", "dissipation")),
+    ("contact_totals.csv", ("contact",), ("P", "T"), None, ("dissipated_energy",)),
+    ("reactions.csv", ("nset",), ("RF1", "RF2"), None, ()),
+    ("displacements.csv", ("node",), ("u1", "u2"), None, ()),
 )
 
 #: components of one vector share one scale: the floor of the allowed difference is relative to
 #: the vector's size, not to a component that is round-off everywhere (a reaction RF1 ~ 1e-14
-#: beside RF2 ~ 1e3 would otherwise allow 1e-20)
-FAMILIES = (("p", "tau"), ("P", "T"), ("RF1", "RF2"), ("u1", "u2"))
+#: beside RF2 ~ 1e3 would otherwise allow 1e-20); the slips share the scale of the largest
+#: (an increment of slip is judged against the slip the run produces)
+FAMILIES = (("p", "tau"), ("P", "T"), ("RF1", "RF2"), ("u1", "u2"),
+            ("slip", "lambda", "signed_slip", "slip_increment"))
 #: forces of different tables share the run's force scale too (reactions at a symmetry axis are
 #: round-off beside the contact force)
 FORCES = ("P", "T", "RF1", "RF2")
@@ -107,14 +123,18 @@ def compare_dirs(run: Path, ref: Path, tol=None) -> Report:
     tol = tol or DEFAULT_TOL
     rep = Report()
     tables = []
-    for fname, key_cols, qtys, text_col in TABLES:
+    for fname, key_cols, qtys, text_col, optional in TABLES:
         ref_path, run_path = Path(ref) / fname, Path(run) / fname
         if not ref_path.exists():
             continue
         if not run_path.exists():
             rep.problems.append(f"{fname} is in the reference but not in the run")
             continue
-        tables.append((fname, read_table(run_path), read_table(ref_path), key_cols, qtys, text_col))
+        run_t, ref_t = read_table(run_path), read_table(ref_path)
+        if fname == "contact.csv":
+            run_t, ref_t = copen_view(run_t), copen_view(ref_t)
+        qtys = tuple(qtys) + tuple(q for q in optional if q in run_t and q in ref_t)
+        tables.append((fname, run_t, ref_t, key_cols, qtys, text_col))
     force = max((float(np.max(np.abs(t[2][q]))) for t in tables for q in t[4]
                  if q in FORCES and q in t[2] and len(t[2][q])), default=0.0)
     for fname, run_t, ref_t, key_cols, qtys, text_col in tables:
@@ -122,6 +142,23 @@ def compare_dirs(run: Path, ref: Path, tol=None) -> Report:
     if not any((Path(ref) / t[0]).exists() for t in TABLES):
         rep.problems.append(f"{ref} holds none of the compared tables")
     return rep
+
+
+def copen_view(table: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A contact.csv table as newer tables write it: ``gap`` in the COPEN convention
+    (:func:`~lagamine_py.results.copen_gap`), status ``none`` where an older table has a NaN
+    gap (the normal missed the foundation), and NaN as the gap of ``none`` points (not
+    compared: see the module docstring)."""
+    if "gap" not in table or "status" not in table:
+        return table
+    out = dict(table)
+    gap = copen_gap(table)
+    status = np.asarray(table["status"], dtype=object).copy()
+    if COPEN_COLUMNS[0] not in table:
+        status[np.isnan(gap)] = "none"
+    out["gap"] = np.where(status == "none", np.nan, gap)
+    out["status"] = status
+    return out
 
 
 def _series(table, key_cols):

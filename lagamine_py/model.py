@@ -146,8 +146,10 @@ class FoundationMotion:
 
 
 #: ``*OUTPUT, FIELDS=`` names: what the VTK body files carry besides the mesh and the ids
-OUTPUT_FIELDS = {"U": "displacement", "S": "stress (components and von Mises)",
-                 "PEEQ": "equivalent plastic strain", "RF": "reaction forces"}
+OUTPUT_FIELDS = {"U": "displacement", "S": "stress (tensor, von Mises, pressure)",
+                 "LE": "total strain (logarithmic under NLGEOM, small strain otherwise)",
+                 "PE": "plastic strain", "PEEQ": "equivalent plastic strain",
+                 "RF": "reaction forces"}
 
 
 @dataclass
@@ -219,6 +221,7 @@ class Model:
     axisymmetric: bool = False
     parameters: dict[str, Any] = field(default_factory=dict)        # *PARAMETER values
     checks: list[dict[str, Any]] = field(default_factory=list)      # *CHECK requests
+    units: tuple[str, ...] = ()           # *UNITS: names of the length, force, stress units
 
     @property
     def ndof(self) -> int:

@@ -12,7 +12,20 @@ from pathlib import Path
 
 import numpy as np
 
-TEXT_COLUMNS = {"status", "nset", "contact", "step_name", "failed", "reason"}
+TEXT_COLUMNS = {"status", "nset", "contact", "step_name", "failed", "reason", "load"}
+
+#: contact.csv columns that came with the COPEN sign of ``gap`` (positive when open): a table
+#: without them was written with ``gap`` positive for penetration
+COPEN_COLUMNS = ("signed_slip", "slip_increment", "dissipation")
+
+
+def copen_gap(table: dict[str, np.ndarray]) -> np.ndarray:
+    """The ``gap`` column of a contact.csv table in the COPEN convention (positive when open,
+    minus the penetration in contact), whichever convention it was written in: a table without
+    the :data:`COPEN_COLUMNS` was written before the COPEN sign (the archived references of
+    ``decks/reference`` among them), with ``gap`` positive for penetration, and is negated."""
+    gap = np.asarray(table["gap"], float)
+    return gap if COPEN_COLUMNS[0] in table else -gap
 
 
 def read_table(path: Path) -> dict[str, np.ndarray]:
@@ -74,8 +87,20 @@ class RunResults:
         return [(float(d.get("timestep")), int(d.get("part", 0)), self.outdir / d.get("file"))
                 for d in root.iter("DataSet")]
 
+    def blocks(self) -> list[tuple[float, str, Path]]:
+        """(time, block name, file) of every dataset of the PVD index: ``body``, ``contact
+        <pair>``, ``foundation <name>`` (an index written before blocks had names: part 0
+        ``body``, 1 ``contact``, 2 ``foundation``)."""
+        pvds = sorted(self.outdir.glob("*.pvd"))
+        if not pvds:
+            return []
+        old = {0: "body", 1: "contact", 2: "foundation"}
+        return [(float(d.get("timestep")), d.get("name") or old.get(int(d.get("part", 0)), ""),
+                 self.outdir / d.get("file"))
+                for d in ET.parse(pvds[0]).getroot().iter("DataSet")]
+
     def body_files(self) -> list[tuple[float, Path]]:
-        return [(t, f) for t, part, f in self.pvd() if part == 0]
+        return [(t, f) for t, name, f in self.blocks() if name == "body"]
 
     def body(self, index: int = -1) -> dict[str, np.ndarray]:
         return read_vtu(self.body_files()[index][1])

@@ -202,16 +202,24 @@ def test_coulomb(tmp_path, factor):
     assert res["error"] == pytest.approx(abs(factor - 1), abs=1e-12)
 
 
-def test_penetration(tmp_path):
+@pytest.mark.parametrize("copen", (True, False))
+def test_penetration(tmp_path, copen):
+    """gap is -d in the COPEN convention (tables with the signed_slip column); a table written
+    before it has gap = +d: the check reads both."""
     d = 50 / 1e6
-    pts = [(float(k), 50.0, 0.0, d, "stick") for k in range(6)]
-    pts[3] = (3.0, 50.0, 0.0, 1.1 * d, "stick")
-    pts.append((9.0, 0.0, 0.0, -0.5, "open"))                           # open: not counted
-    write_csv(tmp_path / "contact.csv", contact_rows(pts))
+    sign = -1.0 if copen else 1.0
+    pts = [(float(k), 50.0, 0.0, sign * d, "stick") for k in range(6)]
+    pts[3] = (3.0, 50.0, 0.0, sign * 1.1 * d, "stick")
+    pts.append((9.0, 0.0, 0.0, -sign * 0.5, "open"))                    # open: not counted
+    pts.append((10.0, 0.0, 0.0, 0.7, "none"))                           # no foundation opposite
+    rows = contact_rows(pts)
+    if copen:
+        rows["signed_slip"] = [0.0] * len(pts)
+    write_csv(tmp_path / "contact.csv", rows)
     (res,) = evaluate_checks([{"name": "PEN", "type": "PENETRATION", "params": {"P": 50, "KP": 1e6}}],
                              tmp_path)
     assert res["error"] == pytest.approx(0.1, rel=1e-9)
-    assert res["measured"]["gap"] == pytest.approx(1.1 * d)
+    assert res["measured"]["penetration"] == pytest.approx(1.1 * d)
 
 
 # ---------------------------------------------------------------- bodies

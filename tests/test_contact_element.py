@@ -67,7 +67,8 @@ class StandInCoulomb(ContactLaw):
             tan["lam_p"] = np.where(slip, -self.phi / A, 0.0)
         status = np.where(slip, SLIP, np.where(stick, STICK, OPEN)).astype(np.int8)
         new = {"p": p, "tau": tau, "lam": lam0 + dlam, "slip": state["slip"] + dlam,
-               "dissip": state["dissip"] + dlam * np.abs(tau), "status": status}
+               "vp": state["vp"] + s * dlam, "dissip": state["dissip"] + dlam * np.abs(tau),
+               "status": status}
         return new, tan
 
 
@@ -228,7 +229,7 @@ def test_flat_punch_pressure_and_forces(nfn, ax):
     assert pts.P == pytest.approx(-total, rel=1e-12)
     assert pts.A == pytest.approx(-total / p, rel=1e-12)
     assert np.allclose(pts.F, [0.0, -total], rtol=1e-12, atol=1e-12)
-    assert np.allclose(pts.gap, dy)
+    assert np.allclose(pts.gap, -dy)                     # COPEN: minus the penetration
     assert np.allclose(pts.x[:, 1], -dy)
 
 

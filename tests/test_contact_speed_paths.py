@@ -49,7 +49,7 @@ def _batch(par, rng, g=3000, simple=False):
     """Committed states and sub-interval increments around the cone (every branch)."""
     st = {"p": np.where(rng.random(g) < 0.3, 0.0, 20 * rng.random(g)),
           "lam": np.where(rng.random(g) < 0.3, 0.0, 0.2 * rng.random(g)),
-          "slip": rng.random(g), "dissip": rng.random(g),
+          "slip": rng.random(g), "vp": rng.standard_normal(g), "dissip": rng.random(g),
           "status": rng.integers(0, 3, g).astype(np.int8)}
     radius = par.get("B", 0.0) + par["PHI"] * st["p"]
     on_cone = rng.random(g) < 0.4

@@ -55,7 +55,7 @@ CASES = [
     ("unknown keyword", edit("*SOLID,", "*NODES\n5, 2, 2\n*SOLID,"), "*NODES", "NODES",
      ["unknown keyword", "did you mean *NODE?"]),
     ("unknown output field", edit("*END STEP", "*OUTPUT, FIELDS=U/PEQ\n*END STEP"),
-     "*OUTPUT, FIELDS=U/PEQ", "OUTPUT", ["unknown field 'PEQ'", "did you mean PEEQ?", "U, S, PEEQ, RF"]),
+     "*OUTPUT, FIELDS=U/PEQ", "OUTPUT", ["unknown field 'PEQ'", "did you mean PEEQ?", "U, S, LE, PE, PEEQ, RF"]),
     ("unknown parameter", edit("MATERIAL=M\n", "MATERIAL=M, THICKNES=2\n"),
      "*SOLID, ELSET=E, MATERIAL=M, THICKNES=2", "SOLID", ["unknown parameter THICKNES", "did you mean THICKNESS?"]),
     ("missing required parameter", edit("TYPE=Q4PE, ELSET=E", "ELSET=E"), "*ELEMENT, ELSET=E", "ELEMENT",

@@ -2,9 +2,10 @@
 
 Hand-built increments on a 2-element Q8 mesh (parallelograms, 3x3 Gauss) and a 2-element Q4
 mesh (2x2 Gauss).  The Gauss values are closed-form fields evaluated at the Gauss points, so the
-expected nodal values are the same fields at the nodes (the extrapolation is exact for fields
-the rule represents: quadratic for 3x3, linear for 2x2) and the expected cell means are exact
-integrals (scipy ``dblquad``).
+extrapolation to a node gives the same field at the node (it is exact for fields the rule
+represents: quadratic for 3x3, linear for 2x2); the nodal value written is that value, or the
+nearest bound of the Gauss values of the elements around the node when it lies outside them
+(computed here node by node); the expected cell means are exact integrals (scipy ``dblquad``).
 """
 from __future__ import annotations
 
@@ -76,11 +77,15 @@ def make_result(model, q8, q4, step=1, inc=1, time=0.5, write_fields=True, conta
                        peeq_field(xg4))]
     cps, fnd = [], {}
     if contacts:
+        x0 = rng.normal(size=(3, 2))
         cps = [ContactPoints(name="BOT->TOOL", element=np.array([1, 1, 2]), face=np.array([1, 1, 1]),
-                             gauss=np.array([1, 2, 3]), x=rng.normal(size=(3, 2)), p=rng.normal(size=3) / 3,
-                             tau=rng.normal(size=3) / 7, gap=rng.normal(size=3) * 1e-7, slip=rng.random(3) / 9,
-                             lam=rng.random(3) * np.pi, status=np.array([0, 1, 2], np.int8),
-                             P=float(rng.normal()) / 3, T=float(rng.normal()) / 11)]
+                             gauss=np.array([1, 2, 3]), x=x0 + rng.normal(size=(3, 2)) / 5,
+                             p=rng.normal(size=3) / 3, tau=rng.normal(size=3) / 7,
+                             gap=rng.normal(size=3) * 1e-7, slip=rng.random(3) / 9,
+                             lam=rng.random(3) * np.pi, status=np.array([0, 1, 3], np.int8),
+                             P=float(rng.normal()) / 3, T=float(rng.normal()) / 11, x0=x0,
+                             vp=rng.normal(size=3) / 13, dvp=rng.normal(size=3) / 17,
+                             dissip=rng.random(3) / 19, E=float(rng.random()) / 23)]
         xs = np.linspace(-2, 2, 5)
         fnd = {"TOOL": np.column_stack([xs + time, 0.1 * xs**2 - 1])}
     return IncrementResult(step=step, step_name="LOAD", increment=inc, time=time, step_time=time, dt=0.25,
@@ -137,50 +142,102 @@ def test_vtu_round_trip_gives_fields_exactly(run):
     assert conn == q8.tolist() + q4.tolist()
 
 
-def test_nodal_stress_is_the_extrapolated_field(run):
+def patch_range(coords, blocks, field):
+    """Per node, [min, max] of ``field`` over the Gauss points of the elements around it, node
+    by node (the bound the nodal values must respect)."""
+    lo = np.full(len(coords), np.inf)
+    hi = -lo
+    for conn, ngauss in blocks:
+        values = field(gauss_points(coords, conn, ngauss))            # (e, q)
+        for e, nodes in enumerate(conn):
+            lo[nodes] = np.minimum(lo[nodes], values[e].min())
+            hi[nodes] = np.maximum(hi[nodes], values[e].max())
+    return lo, hi
+
+
+def test_nodal_values_are_the_field_within_the_patch_range(run):
     out, model, _, _ = run
     body = read_vtu(out / "deck_0000.vtu")
     _, q8, q4 = build_mesh()
     n8, n4 = np.unique(q8), np.unique(q4)
+    X = model.coords
     S, peeq = body["point:stress"], body["point:PEEQ"]
-    assert np.allclose(S[n8], stress_field(model.coords[n8]), rtol=1e-12, atol=1e-12)
-    assert np.allclose(S[n4], [SIGMA, 0, 0, TAU], rtol=1e-12)
-    assert np.allclose(peeq[np.r_[n8, n4]], peeq_field(model.coords[np.r_[n8, n4]]), rtol=1e-12)
+    assert S.shape == (len(X), 6) and not S[:, 4:].any()            # XX YY ZZ XY, YZ = XZ = 0
+    for k in range(4):
+        lo, hi = patch_range(X, [(q8, 3)], lambda x: stress_field(x)[..., k])
+        want = np.clip(stress_field(X[n8])[:, k], lo[n8], hi[n8])
+        assert np.allclose(S[n8, k], want, rtol=1e-12, atol=1e-12), k
+        if k == 0:                            # the clip acts on some nodes, not on the others
+            exact = stress_field(X[n8])[:, k]
+            assert (want != exact).any() and (want == exact).any()
+    assert np.allclose(S[n4, :4], [SIGMA, 0, 0, TAU], rtol=1e-12)
+    lo, hi = patch_range(X, [(q8, 3), (q4, 2)], peeq_field)
+    nodes = np.r_[n8, n4]
+    assert np.allclose(peeq[nodes], np.clip(peeq_field(X[nodes]), lo[nodes], hi[nodes]), rtol=1e-12)
     assert np.allclose(body["point:von_mises"][n4], np.hypot(SIGMA, np.sqrt(3) * TAU), rtol=1e-12)
-    unused = np.setdiff1d(np.arange(len(model.coords)), np.r_[n8, n4])   # Q8 grid centres
+    assert np.allclose(body["point:pressure"][n4], -SIGMA / 3, rtol=1e-12)
+    unused = np.setdiff1d(np.arange(len(X)), nodes)                   # Q8 grid centres
     assert len(unused) == 2 and not S[unused].any()
+
+
+def test_recovery_bounds_what_extrapolation_overshoots():
+    """A PEEQ rising steeply across one Q8 element: extrapolated to the nodes it goes negative
+    and above the largest Gauss value; recovered, it stays within them."""
+    from lagamine_py.output.recovery import nodal_values
+    model, q8, _ = build_mesh()
+    xg = gauss_points(model.coords, q8[:1], 3)
+    gauss = (np.maximum(xg[..., 0] - 0.5, 0.0) ** 2)[..., None]        # 0 on the left third
+    plain = nodal_values(len(model.coords), [(Q8PlaneStrain, q8[:1], gauss)], bounded=False)
+    bounded = nodal_values(len(model.coords), [(Q8PlaneStrain, q8[:1], gauss)])
+    nodes = q8[0]
+    assert plain[nodes].min() < 0 or plain[nodes].max() > gauss.max()
+    assert bounded[nodes].min() >= gauss.min() and bounded[nodes].max() <= gauss.max()
 
 
 def test_cell_data_are_exact_means(run):
     out, model, _, _ = run
     body = read_vtu(out / "deck_0000.vtu")
+    S = body["cell:element_stress"]
     for e in range(2):   # exact integral means over the parallelograms (the affine map has constant J)
-        for k, name in enumerate(("S11", "S22", "S33", "S12")):
+        for k in range(4):
             exact, _ = dblquad(lambda t, s: stress_field(shear_map(np.array(s), np.array(t)))[k],
                                e, e + 1, 0, 1, epsabs=1e-13, epsrel=1e-13)
-            assert body[f"cell:{name}"][e] == pytest.approx(exact, rel=1e-11, abs=1e-12)
+            assert S[e, k] == pytest.approx(exact, rel=1e-11, abs=1e-12)
         centroid = shear_map(np.array(e + 0.5), np.array(0.5))
-        assert body["cell:PEEQ"][e] == pytest.approx(peeq_field(centroid), rel=1e-12)
-    assert np.allclose(body["cell:S11"][2:], SIGMA) and np.allclose(body["cell:S12"][2:], TAU)
-    assert np.allclose(body["cell:von_mises"][2:], np.sqrt(SIGMA**2 + 3 * TAU**2), rtol=1e-12)
-    assert np.allclose(body["cell:PEEQ"][2:], peeq_field(np.array([[11, 0.5], [12, 0.5]]) - [0.5, 0]), rtol=1e-12)
+        assert body["cell:element_PEEQ"][e] == pytest.approx(peeq_field(centroid), rel=1e-12)
+    assert np.allclose(S[2:, 0], SIGMA) and np.allclose(S[2:, 3], TAU) and not S[:, 4:].any()
+    assert np.allclose(body["cell:element_von_mises"][2:], np.sqrt(SIGMA**2 + 3 * TAU**2), rtol=1e-12)
+    assert np.allclose(body["cell:element_PEEQ"][2:], peeq_field(np.array([[11, 0.5], [12, 0.5]]) - [0.5, 0]),
+                       rtol=1e-12)
 
 
 def test_contact_and_foundation_parts(run):
-    out, _, results, _ = run
+    out, model, results, _ = run
     r = results[2]
     cp = r.contacts[0]
-    c = read_vtu(out / "deck_contact_0001.vtu")
-    assert np.array_equal(c["points"][:, :2], cp.x)
+    c = read_vtu(out / "deck_contact_BOT-TOOL_0001.vtu")
+    # at the reference positions, with the displacement to the current ones (warp keeps them on the body)
+    assert np.array_equal(c["points"][:, :2], cp.x0)
+    assert np.allclose(c["points"][:, :2] + c["point:displacement"][:, :2], cp.x, rtol=0, atol=1e-15)
     for name, attr in (("p", "p"), ("tau", "tau"), ("gap", "gap"), ("slip", "slip"), ("lambda", "lam"),
+                       ("signed_slip", "vp"), ("slip_increment", "dvp"), ("dissipation", "dissip"),
                        ("status", "status"), ("element", "element"), ("gauss", "gauss")):
         assert np.array_equal(c[f"point:{name}"], getattr(cp, attr)), name
-    f = read_vtu(out / "deck_foundation_0001.vtu")["points"]
-    assert len(f) == 2 * 16 + 1
+    reader = vtk.vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(out / "deck_contact_BOT-TOOL_0001.vtu"))
+    reader.Update()
+    fd = reader.GetOutput().GetFieldData()
+    codes = {fd.GetArray(k).GetName(): fd.GetArray(k).GetValue(0) for k in range(fd.GetNumberOfArrays())}
+    assert {k: v for k, v in codes.items() if k.startswith("status_")} == {
+        "status_open": 0, "status_stick": 1, "status_slip": 2, "status_none": 3}
+    assert codes["TIME"] == r.time and codes["STEP"] == 1 and codes["INCREMENT"] == 3
+    f = read_vtu(out / "deck_foundation_TOOL_0001.vtu")
+    fx = f["points"][:, :2] + f["point:displacement"][:, :2]          # the current position
+    assert len(fx) == 2 * 16 + 1
     # the arcs interpolate a parabola exactly; ends are the given points
-    x = f[:, 0] - r.time
-    assert np.allclose(f[:, 1], 0.1 * x**2 - 1, rtol=0, atol=1e-13)
-    assert np.array_equal(f[[0, -1], :2], r.foundations["TOOL"][[0, -1]])
+    x = fx[:, 0] - r.time
+    assert np.allclose(fx[:, 1], 0.1 * x**2 - 1, rtol=0, atol=1e-13)
+    assert np.allclose(fx[[0, -1]], r.foundations["TOOL"][[0, -1]], rtol=0, atol=1e-15)
     assert np.allclose(np.diff(x), 4 / 32)
 
 
@@ -197,33 +254,42 @@ def test_sample_arcs_follows_each_arc():
 def test_pvd_lists_every_file_with_increasing_time(run):
     out, _, _, _ = run
     root = ET.parse(out / "deck.pvd").getroot()
-    sets = [(float(d.get("timestep")), int(d.get("part")), d.get("file")) for d in root.iter("DataSet")]
-    assert sets == [(0.25, 0, "deck_0000.vtu"), (0.25, 1, "deck_contact_0000.vtu"),
-                    (0.25, 2, "deck_foundation_0000.vtu"), (1.0, 0, "deck_0001.vtu"),
-                    (1.0, 1, "deck_contact_0001.vtu"), (1.0, 2, "deck_foundation_0001.vtu")]
-    assert all((out / f).exists() for _, _, f in sets)
+    sets = [(float(d.get("timestep")), int(d.get("part")), d.get("name"), d.get("file"))
+            for d in root.iter("DataSet")]
+    assert sets == [(0.25, 0, "body", "deck_0000.vtu"),
+                    (0.25, 1, "contact BOT->TOOL", "deck_contact_BOT-TOOL_0000.vtu"),
+                    (0.25, 2, "foundation TOOL", "deck_foundation_TOOL_0000.vtu"),
+                    (1.0, 0, "body", "deck_0001.vtu"),
+                    (1.0, 1, "contact BOT->TOOL", "deck_contact_BOT-TOOL_0001.vtu"),
+                    (1.0, 2, "foundation TOOL", "deck_foundation_TOOL_0001.vtu")]
+    assert all((out / f).exists() for _, _, _, f in sets)
     assert not (out / "deck_0002.vtu").exists() and not list(out.glob("*.tmp"))
 
 
 def test_contact_tables(run):
     out, _, results, _ = run
     header, rows = read_csv(out / "contact.csv")
-    # DECKS.md's columns, then the pair (an extension: decks with several contact pairs)
-    assert header == "step,increment,time,element,gauss,x,y,p,tau,gap,slip,lambda,status,contact".split(",")
+    # DECKS.md's columns, then the pair (an extension: decks with several contact pairs), then
+    # the signed slip, its increment and the dissipation, appended (older readers keep working)
+    assert header == ("step,increment,time,element,gauss,x,y,p,tau,gap,slip,lambda,status,contact,"
+                      "signed_slip,slip_increment,dissipation").split(",")
     assert [(int(r[0]), int(r[1])) for r in rows] == [(1, 1)] * 3 + [(1, 3)] * 3   # output increments only
     for r, rows3 in ((results[0], rows[:3]), (results[2], rows[3:])):
         cp = r.contacts[0]
         got = np.array([[float(v) for v in row[5:12]] for row in rows3])
         want = np.column_stack([cp.x, cp.p, cp.tau, cp.gap, cp.slip, cp.lam])
         assert np.array_equal(got, want)                       # full precision
+        got = np.array([[float(v) for v in row[14:17]] for row in rows3])
+        assert np.array_equal(got, np.column_stack([cp.vp, cp.dvp, cp.dissip]))
         assert [float(row[2]) for row in rows3] == [r.time] * 3
         assert [(int(row[3]), int(row[4])) for row in rows3] == [(1, 1), (1, 2), (2, 3)]
-        assert [row[12] for row in rows3] == ["open", "stick", "slip"]
+        assert [row[12] for row in rows3] == ["open", "stick", "none"]
         assert [row[13] for row in rows3] == ["BOT->TOOL"] * 3
     header, rows = read_csv(out / "contact_totals.csv")
-    assert header == ["step", "increment", "time", "contact", "P", "T"]
+    assert header == ["step", "increment", "time", "contact", "P", "T", "dissipated_energy"]
     assert [(int(r[1]), r[3]) for r in rows] == [(1, "BOT->TOOL"), (2, "BOT->TOOL"), (3, "BOT->TOOL")]
-    assert [(float(r[4]), float(r[5])) for r in rows] == [(x.contacts[0].P, x.contacts[0].T) for x in results]
+    assert [tuple(map(float, r[4:7])) for r in rows] == [(x.contacts[0].P, x.contacts[0].T, x.contacts[0].E)
+                                                         for x in results]
 
 
 def test_reactions_table(run):
@@ -333,11 +399,13 @@ def test_resume_appends_and_drops_what_came_after_the_restart_point(tmp_path):
 
 
 @pytest.mark.parametrize("fields, present, absent", [
-    (("S",), {"point:stress", "point:von_mises", "cell:S11", "cell:von_mises"},
-     {"point:displacement", "point:reaction", "point:PEEQ", "cell:PEEQ"}),
-    (("U", "PEEQ"), {"point:displacement", "point:PEEQ", "cell:PEEQ"},
-     {"point:stress", "point:reaction", "cell:S11", "cell:von_mises"}),
-    ((), {"point:displacement", "point:reaction", "point:stress", "point:PEEQ", "cell:S11"}, set()),
+    (("S",), {"point:stress", "point:von_mises", "point:pressure", "cell:element_stress",
+              "cell:element_von_mises"},
+     {"point:displacement", "point:reaction", "point:PEEQ", "cell:element_PEEQ"}),
+    (("U", "PEEQ"), {"point:displacement", "point:PEEQ", "cell:element_PEEQ"},
+     {"point:stress", "point:reaction", "cell:element_stress", "cell:element_von_mises"}),
+    ((), {"point:displacement", "point:reaction", "point:stress", "point:PEEQ", "cell:element_stress"},
+     set()),
 ])
 def test_output_fields_select_the_vtk_arrays(tmp_path, fields, present, absent):
     """*OUTPUT, FIELDS= limits the body files' arrays (the mesh and the ids are always there);

@@ -212,3 +212,46 @@ def test_interface_curves_one_per_state_and_pair():
     del c["contact"]
     (only,) = interface_curves(c, st, "x")
     assert only[2] == "end" and only[3]["s"].tolist() == sorted(x)
+
+
+# -- what the pictures say -----------------------------------------------------------------------
+def test_state_labels_carry_the_loads_reached_with_their_units():
+    from lagamine_py.plot import Units
+    loads = {(1, 4): {"P TOP": 200.0}, (2, 3): {"U1 RIGHT": -0.00167, "DIE dy": 0.5}}
+    states = chosen_states(TWO_STEPS, "1,2:3", {1: "PRESS", 2: "SLIDE"}, loads, Units(("mm", "N", "MPa")))
+    assert states[0].label == "step 1 PRESS, end: P TOP = 200 MPa (t = 1)"
+    assert states[1].label == "step 2 SLIDE, inc 3: U1 RIGHT = -0.00167 mm, DIE dy = 0.5 mm (t = 1.35)"
+    assert Units(()).of("stress") == " (deck units)" and Units(("m", "kN", "kPa"), True).of("force") == " (kN/rad)"
+    assert chosen_states(TWO_STEPS, "1", {}, loads, Units(()))[0].label == "step 1, end: P TOP = 200 (t = 1)"
+
+
+def test_deformation_scale_makes_small_displacements_visible():
+    from lagamine_py.plot import deformation_scale
+    u = np.array([[3e-3, 4e-3], [0.0, 0.0]])            # largest 5e-3 on a body of 40
+    assert deformation_scale(u, 40.0) == 200.0          # 5e-3 * 200 = 1 = 2.5 % of 40 (below 5 %)
+    assert deformation_scale(u * 100, 40.0) == 1.0      # 0.5 is already 1.25 % of 40: true scale
+    assert deformation_scale(np.zeros((3, 2)), 40.0) == 1.0
+    assert deformation_scale(np.array([[7e-4, 0.0]]), 10.0) == 500.0   # 0.35 of 0.5 wanted
+
+
+def test_zoom_on_the_closed_zone_and_rounding():
+    from lagamine_py.plot import closed_zone, parse_xlim, rounding_only
+    s = np.linspace(0.0, 100.0, 101)
+    p = np.where(np.abs(s - 50.0) <= 1.0, 10.0, 0.0)   # closed over 49..51
+    lo, hi = closed_zone([(0, 0, "", {"s": s, "p": p})], s)
+    assert lo < 49.0 < 51.0 < hi and hi - lo < 10.0
+    assert closed_zone([(0, 0, "", {"s": s, "p": np.ones_like(s)})], s) is None   # all closed
+    assert rounding_only([1e-14, -3e-13], 4000.0) and not rounding_only([1e-3], 4000.0)
+    assert parse_xlim("2, 4.5") == (2.0, 4.5) and parse_xlim(None) is None
+    for bad in ("4,2", "x,1", "1"):
+        with pytest.raises(ValueError, match="--xlim"):
+            parse_xlim(bad)
+
+
+def test_cli_xlim_and_scale(small_run, tmp_path, capsys):
+    assert cli_main(["plot", str(small_run), "-o", str(tmp_path), "--xlim", "1,3", "--scale", "100"]) == 0
+    check_png(tmp_path / "interface.png")
+    check_png(tmp_path / "mesh.png")
+    assert cli_main(["plot", str(small_run), "-o", str(tmp_path / "bad"), "--xlim", "3,1"]) == 2
+    assert cli_main(["plot", str(small_run), "-o", str(tmp_path / "bad"), "--scale", "-2"]) == 2
+    assert "--scale" in capsys.readouterr().err

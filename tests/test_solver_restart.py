@@ -57,9 +57,14 @@ def test_restart_reaches_the_uninterrupted_result(tmp_path, stop_at, exc):
                 raise exc
 
     first = Stopper()
-    with pytest.raises(exc):
-        go(tmp_path / "cut", first)
-    assert first.closed[0] == 1
+    if exc is KeyboardInterrupt:        # Ctrl-C: a clean stop, exit status 130, how to resume
+        outcome = go(tmp_path / "cut", first)
+        assert outcome.status == first.closed[0] == 130
+        assert f"lagamine-py run --restart {tmp_path / 'cut'}" in outcome.message
+    else:                               # anything else propagates, the writers closed with 1
+        with pytest.raises(exc):
+            go(tmp_path / "cut", first)
+        assert first.closed[0] == 1
     assert restart_deck(tmp_path / "cut").as_posix() == "some/deck.dat"
     second = Recorder()
     out = go(tmp_path / "cut", second, restart=True)
@@ -101,8 +106,8 @@ def test_cli_restart_of_a_deck_rewrites_nothing_twice(tmp_path):
                 raise KeyboardInterrupt
 
     model = load_deck(deck)
-    with pytest.raises(KeyboardInterrupt):
-        run(model, cut, writers=default_writers(cut, model) + [Stop()], deck_path=deck)
+    assert run(model, cut, writers=default_writers(cut, model) + [Stop()],
+               deck_path=deck).status == 130
     assert main(["run", "--restart", str(cut), "-q"]) == 0
     for name in ("contact.csv", "reactions.csv", "displacements.csv", "contact_totals.csv"):
         a, b = read_table(full / name), read_table(cut / name)
@@ -113,3 +118,30 @@ def test_cli_restart_of_a_deck_rewrites_nothing_twice(tmp_path):
                 assert list(a[col]) == list(b[col]), (name, col)
             else:
                 np.testing.assert_allclose(b[col], a[col], rtol=1e-10, atol=1e-12, err_msg=f"{name}:{col}")
+
+
+def test_ctrl_c_through_the_command_line(tmp_path, monkeypatch, capsys):
+    """Ctrl-C during `lagamine-py run`: exit status 130, the files closed, and the message says
+    how to go on; `--restart` then finishes the run."""
+    from pathlib import Path
+
+    from lagamine_py.cli import main
+    from lagamine_py.solver import steps
+
+    deck = Path(__file__).resolve().parents[1] / "decks" / "coulomb_block.dat"
+    out = tmp_path / "out"
+    real = steps.Controller._save_restart
+    calls = []
+
+    def interrupt_at_the_fourth(self, *a, **k):
+        real(self, *a, **k)
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+    monkeypatch.setattr(steps.Controller, "_save_restart", interrupt_at_the_fourth)
+    assert main(["run", str(deck), "-o", str(out), "-q"]) == 130
+    err = capsys.readouterr().err
+    assert f"lagamine-py run --restart {out}" in err and "results in" in err
+    assert "exit status 130" in (out / "coulomb_block.log").read_text().splitlines()[-1]
+    monkeypatch.setattr(steps.Controller, "_save_restart", real)
+    assert main(["run", "--restart", str(out), "-q"]) == 0

@@ -285,11 +285,24 @@ def test_progress_plain_lines_when_not_a_tty(tmp_path):
 
     from lagamine_py.solver.steps import Progress
     stream = io.StringIO()
-    prog = Progress(enabled=True, stream=stream)
-    prog.update(0, step("LOAD"), 0.5, 1.0, 3, 2, 2)
+    prog = Progress(enabled=True, stream=stream, total=2.0)
+    prog.start(0.0)
+    prog.t0 -= 10.0                             # 10 s spent on the first quarter of the run
+    prog.update(0, step("LOAD"), 0.5, 3, 2, 2)
     prog.end()
-    assert stream.getvalue().startswith("step 1/2 LOAD: t 0.5/1  inc 3  it 2")
-    assert stream.getvalue().count("\n") == 1 and "\r" not in stream.getvalue()
+    line = stream.getvalue()
+    assert line.startswith(" 25%  step 1/2 LOAD  time 0.5/2  inc 3  it 2  10s")
+    assert line.rstrip().endswith("ETA 30s")     # three more quarters at the same pace
+    assert line.count("\n") == 1 and "\r" not in line
+
+
+def test_progress_eta_of_a_resumed_run_counts_from_where_it_resumed():
+    from lagamine_py.solver.steps import Progress
+    prog = Progress(enabled=False, total=4.0)
+    prog.start(1.0)                             # resumed at time 1 of 4
+    assert prog.eta(1.0) is None
+    prog.t0 -= 6.0                              # 6 s for time 1 -> 2: 2 more units at 6 s each
+    assert prog.eta(2.0) == pytest.approx(12.0, rel=1e-3)
 
 
 # -- the first iterate of an increment (EXTRAPOLATION) ---------------------------------------
@@ -342,3 +355,18 @@ def test_extrapolation_does_not_cross_steps(tmp_path):
     assert out.status == 0
     assert [s is None for s in starts] == [True, False, True, False]
     assert rec.results[-1].u[0, 0] == pytest.approx(-2.0, rel=1e-12)
+
+
+def test_times_handed_out_are_those_the_steps_define(tmp_path):
+    """Increments of 0.1 summed in floating point give 0.30000000000000004; writers get 0.3.
+    A time that is exact in binary (0.547265625 = 0.5 + 3/64) keeps every digit."""
+    from lagamine_py.solver.steps import round_time
+    assert 0.1 + 0.2 != 0.3 and round_time(0.1 + 0.2, 2.0) == 0.3
+    assert round_time(1.6749999999999998, 2.0) == 1.675
+    assert round_time(0.547265625, 2.0) == 0.547265625
+    assert round_time(1234.5000000000002, 2000.0) == 1234.5
+    model = make_model(1, [step(dt0=0.1, dt_max=0.1, cloads=[cload(0, 1, 4.0)],
+                                controls={"GROWTH": 1.0})])
+    out, rec = solve(tmp_path, model, grounded([2.0]))
+    assert out.status == 0
+    assert [r.time for r in rec.results] == [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0]

@@ -557,7 +557,7 @@ def test_flat_punch_penetration_is_p_over_kp(tmp_path, etype, nlgeom, p):
     assert chk["message"] == "" and chk["error"] < 1e-10, chk
     c = cap.results[-1].contacts[0]
     assert len(c.p) == 3 * 4                                  # 3 points on each of 4 faces
-    np.testing.assert_allclose(c.gap, p / 1e6, rtol=1e-10)
+    np.testing.assert_allclose(c.gap, -p / 1e6, rtol=1e-10)      # COPEN: -d
     np.testing.assert_allclose(c.p, p, rtol=1e-10)
     area = c.A                                                # current area (per radian in AX)
     assert c.P == pytest.approx(p * area, rel=1e-10)

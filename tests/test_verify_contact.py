@@ -87,7 +87,7 @@ def test_flat_punch_penetration_is_p_over_kp(tmp_path):
     outcome, cap, _ = run_deck(DECKS / "flat_punch.dat", tmp_path / "out")
     assert outcome.status == 0, outcome.message
     c = last_contact(cap)
-    np.testing.assert_allclose(c.gap, 50.0 / 1e6, rtol=1e-8)
+    np.testing.assert_allclose(c.gap, -50.0 / 1e6, rtol=1e-8)      # COPEN: -d
     np.testing.assert_allclose(c.p, 50.0, rtol=1e-8)
     assert (c.status != 0).all()
     assert c.P == pytest.approx(50.0 * c.A, rel=1e-8)

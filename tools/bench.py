@@ -9,6 +9,8 @@ Sub-commands (run from the repository root, in the project's venv)::
                                                                     # (NumPy and numba kernels)
     python tools/bench.py solvers [--sizes 20x10 40x20 ...]        # SPLU vs PARDISO crossover
     python tools/bench.py startup                                   # lagamine-py --help
+    python tools/bench.py vtu FILE.vtu                              # VTU encodings: time, size,
+                                                                    # does meshio read it
     python tools/bench.py report --json F [--png P]                 # markdown table + plot
 
 ``scale`` runs press-then-slide (``decks/press_slide.dat``) with the mesh refined: ``NX x NY`` Q8,
@@ -202,7 +204,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         "increments": timers.n["vtk"], "iterations": iters,
         "bulk_evaluations": timers.n["bulk"],
         "solver": solver, "kernel": kernel,
-        "fused_groups": int(sum(problem.fused(k) for k in range(len(problem.groups)))),
+        "fused_groups": int(sum(g.fused for g in problem.groups)),
         "solver_used": sorted({type(s).__name__ for s in impl}),
         "pardiso_analyses": int(sum(getattr(s, "analyses", 0) for s in impl)),
         "t_deck": t_deck, "t_build": t_build, "t_run": t_run, "times": t,
@@ -535,6 +537,59 @@ def _plot(results, png: Path, basis: str = "cpu") -> None:
 
 
 # --------------------------------------------------------------------------------------------
+# VTU encodings: write time, size, and whether meshio reads the file
+
+VTU_ENCODINGS = (("appended raw", "none", None), ("appended raw", "lz4", None),
+                 ("appended raw", "zlib", 1), ("appended base64", "none", None),
+                 ("appended base64", "zlib", 1), ("appended base64", "zlib", 6),
+                 ("inline base64", "zlib", 1))
+
+
+def bench_vtu(path: Path, repeat: int = 12) -> list[dict]:
+    """Write the grid of the VTU ``path`` (a body file of a run) with each encoding of
+    :data:`VTU_ENCODINGS`, ``repeat`` times: median write time, size, meshio's verdict."""
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader, vtkXMLUnstructuredGridWriter
+    reader = vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    grid = reader.GetOutput()
+    try:
+        import meshio
+    except ImportError:
+        meshio = None
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "x.vtu"
+        for mode, comp, level in VTU_ENCODINGS:
+            times = []
+            for _ in range(repeat):
+                w = vtkXMLUnstructuredGridWriter()
+                w.SetFileName(str(out))
+                w.SetInputData(grid)
+                if mode.startswith("appended"):
+                    w.SetDataModeToAppended()
+                    w.SetEncodeAppendedData(mode.endswith("base64"))
+                else:
+                    w.SetDataModeToBinary()
+                {"none": w.SetCompressorTypeToNone, "lz4": w.SetCompressorTypeToLZ4,
+                 "zlib": w.SetCompressorTypeToZLib}[comp]()
+                if level is not None:
+                    w.SetCompressionLevel(level)
+                t0 = time.perf_counter()
+                w.Write()
+                times.append(time.perf_counter() - t0)
+            verdict = "not installed"
+            if meshio is not None:
+                try:
+                    meshio.read(out)
+                    verdict = "reads"
+                except Exception as exc:            # what meshio says is the measurement
+                    verdict = f"fails ({type(exc).__name__})"
+            rows.append({"encoding": mode, "compressor": comp, "level": level,
+                         "ms": 1e3 * float(np.median(times[2:] or times)),
+                         "MB": out.stat().st_size / 1e6, "meshio": verdict})
+    return rows
+
 
 def _size(text: str) -> tuple[int, int]:
     nx, ny = text.lower().split("x")
@@ -568,6 +623,9 @@ def main(argv=None) -> int:
     p.add_argument("--sizes", nargs="+", type=_size,
                    default=[(20, 10), (40, 20), (60, 30), (80, 40), (120, 60)])
     sub.add_parser("startup")
+    p = sub.add_parser("vtu")
+    p.add_argument("file", type=Path, help="a body .vtu of a run (e.g. of `one 160 80 --keep DIR`)")
+    p.add_argument("--repeat", type=int, default=12)
     p = sub.add_parser("report")
     p.add_argument("--json", type=Path, nargs="+", required=True)
     p.add_argument("--png", type=Path)
@@ -605,6 +663,18 @@ def main(argv=None) -> int:
         return 0
     if args.cmd == "solvers":
         bench_solvers(args.sizes)
+        return 0
+    if args.cmd == "vtu":
+        from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+        r = vtkXMLUnstructuredGridReader()
+        r.SetFileName(str(args.file))
+        r.Update()
+        print(f"{args.file}: {r.GetOutput().GetNumberOfPoints()} points, "
+              f"{r.GetOutput().GetNumberOfCells()} cells; median of {args.repeat} writes")
+        print("| encoding | compressor | ms | MB | meshio |\n|---|---|---|---|---|")
+        for row in bench_vtu(args.file, args.repeat):
+            comp = row["compressor"] + (f" {row['level']}" if row["level"] else "")
+            print(f"| {row['encoding']} | {comp} | {row['ms']:.1f} | {row['MB']:.2f} | {row['meshio']} |")
         return 0
     if args.cmd == "startup":
         print(f"lagamine-py --help: {bench_startup():.3f} s (best of 5)")

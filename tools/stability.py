@@ -40,7 +40,7 @@ from accuracy_speed import DOCS, STUDY, run_points  # noqa: E402
 
 from lagamine_py.laws.contact_point import drive_contact_point as drive  # noqa: E402
 from lagamine_py.laws.coulomb import Coulomb  # noqa: E402
-from lagamine_py.results import read_table  # noqa: E402
+from lagamine_py.results import copen_gap, read_table  # noqa: E402
 
 CUP = STUDY / "cup_rotation.dat"
 BLOCK = STUDY / "block_study.dat"
@@ -60,7 +60,7 @@ def end_state(run: Path) -> dict | None:
     last = key == key.max()
     lam = float(np.mean(np.asarray(pts["lambda"], float)[last]))
     P, T = float(np.asarray(tot["P"], float)[-1]), float(np.asarray(tot["T"], float)[-1])
-    gap = np.asarray(pts["gap"], float)
+    gap = -copen_gap(pts)            # the penetration (gap is COPEN: positive when open)
     return {"slip": lam, "T_over_P": abs(T) / P if P else math.nan,
             "max_gap": float(np.nanmax(gap)) if gap.size else math.nan}
 

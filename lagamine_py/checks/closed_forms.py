@@ -22,7 +22,9 @@ quantity and the headline ``error``.  Types:
 ``COULOMB`` (``PHI, B, A``)
     Last increment: ``|T|`` against ``PHI |P| + B A``; relative error.
 ``PENETRATION`` (``P, KP``)
-    Last increment, points not ``open``: ``max |gap - P/KP| / (P/KP)``.
+    Last increment, points in contact (``stick`` or ``slip``): the penetration ``d = -gap``
+    (gap in the COPEN convention, :func:`lagamine_py.results.copen_gap`) against ``P/KP``,
+    ``max |d - P/KP| / (P/KP)``.
 ``UNIAXIAL_RO`` (``E, SIGMA0, ALPHA, N, R0, H0``, optional ``NSET``)
     Homogeneous axisymmetric compression or tension of a cylinder, at the end of every step
     (where displacements.csv has rows): Kirchhoff stress ``s = J |RF2| / (r^2 / 2)``, with
@@ -56,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from ..core.params import Param, ParamError
-from ..results import RunResults
+from ..results import RunResults, copen_gap
 from .base import (Check, CheckError, contact_points, last_increment, one_contact, rel, result,
                    rows, table)
 
@@ -281,14 +283,15 @@ class Penetration(Check):
     def evaluate(self, run: RunResults) -> dict[str, Any]:
         d_cf = self.values["P"] / self.kp
         pts = last_increment(contact_points(run, ("gap", "status"), self.contact))
-        closed = np.array([str(s) != "open" for s in pts["status"]])
+        closed = np.array([str(s) in ("stick", "slip") for s in pts["status"]])
         if not closed.any():
             raise CheckError("no contact point is closed at the last increment")
-        gap = pts["gap"][closed].astype(float)
-        errs = np.abs(gap - d_cf) / abs(d_cf)
+        d = -copen_gap(pts)[closed]
+        errs = np.abs(d - d_cf) / abs(d_cf)
         k = int(np.argmax(errs))
-        return result({"gap": float(gap[k]), "gap_mean": float(gap.mean())},
-                      {"gap": d_cf, "gap_mean": d_cf}, {"gap": float(errs[k])})
+        return result({"penetration": float(d[k]), "penetration_mean": float(d.mean())},
+                      {"penetration": d_cf, "penetration_mean": d_cf},
+                      {"penetration": float(errs[k])})
 
 
 # ---------------------------------------------------------------- bodies

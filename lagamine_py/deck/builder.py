@@ -239,6 +239,12 @@ class _Builder:
     def _kw_heading(self, blk, params, text):
         self.m.heading = "\n".join(text)
 
+    def _kw_units(self, blk, params, rows):
+        if self.m.units:
+            self.pb.at(blk, "*UNITS is given twice")
+            return
+        self.m.units = tuple(str(v) for v in rows[0][1])
+
     def _kw_include(self, blk, params, data):
         pass
 

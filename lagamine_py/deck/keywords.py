@@ -23,7 +23,9 @@ from .grammar import Block, DataRow, Num, NumberRows, Pair
 
 @dataclass(frozen=True)
 class Col:
-    """A data column.  ``type``: int, float, name, ref (an id or a set name), face (S1..S4)."""
+    """A data column.  ``type``: int, float, name (upper-cased: names are case-insensitive),
+    text (a name kept as written: ``MPa`` is not ``mPa``), ref (an id or a set name), face
+    (S1..S4)."""
     label: str
     type: str = "float"
     optional: bool = False
@@ -64,6 +66,11 @@ _PAIRS = Data("pairs", doc="`KEY=VALUE` pairs")
 KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
     # ---------------------------------------------------------------- model data
     Keyword("HEADING", "model", data=Data("text", doc="free text"), doc="title of the model"),
+    Keyword("UNITS", "model",
+            data=Data("rows", (Col("length", "text"), Col("force", "text"), Col("stress", "text")),
+                      min_lines=1, max_lines=1, doc="`length, force, stress` unit names"),
+            doc="the names of the deck's units (`mm, N, MPa`), carried into the outputs' "
+                "metadata and the plots' axes; nothing is converted"),
     Keyword("INCLUDE", "any", (Param("INPUT", str, doc="path, relative to the including file"),),
             doc="read another file here"),
     Keyword("PARAMETER", "model", data=Data("pairs", min_lines=1, doc="`name = value` lines"),
@@ -136,8 +143,8 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
             doc="rigid translation of a foundation reached at the step end"),
     Keyword("OUTPUT", "step", (Param("FREQUENCY", int, 1, bounds=(1, None)),
                                Param("FIELDS", str, None,
-                                     doc="fields of the VTK body files: U, S, PEEQ, RF, separated "
-                                         "by / or spaces (default all)"),
+                                     doc="fields of the VTK body files: U, S, LE, PE, PEEQ, RF, "
+                                         "separated by / or spaces (default all)"),
                                Param("CONTACT", bool, True),
                                Param("WRITERS", str, None,
                                      doc="registered writers, separated by / (default: the "
@@ -188,9 +195,9 @@ def _convert_cell(col: Col, tok) -> Any:
         if isinstance(tok, Num) or up not in ("S1", "S2", "S3", "S4"):
             raise ValueError(f"{col.label} must be S1, S2, S3 or S4, got {str(getattr(tok, 'text', tok))!r}")
         return int(up[1])
-    if isinstance(tok, Num):                       # name
+    if isinstance(tok, Num):                       # name, text
         raise ValueError(f"{col.label} must be a name, got the number {tok.text!r}")
-    return str(tok).upper()
+    return str(tok) if col.type == "text" else str(tok).upper()
 
 
 def _shape(data: Data) -> str:

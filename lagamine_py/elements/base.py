@@ -55,17 +55,32 @@ class GroupResult:
 class CellBlock:
     """What writers get of a solid group: the element class (its topology: VTK cell, recovery),
     the deck ids (e,), the connectivity (e, nen) in node rows, and the Gauss values: the Cauchy
-    stress (e, q, 4) and the equivalent plastic strain (e, q)."""
+    stress (e, q, 4) and the equivalent plastic strain (e, q); when the element computes them,
+    the total strain and the plastic strain (e, q, 4), tensor components [11, 22, 33, 12]
+    (``strain_kind`` says which total strain: ``"log"``, the logarithmic (Hencky) strain
+    ``ln V`` under NLGEOM, or ``"small"``, the infinitesimal strain)."""
     element: type
     ids: np.ndarray
     conn: np.ndarray
     stress: np.ndarray
     peeq: np.ndarray
+    strain: np.ndarray | None = None
+    plastic_strain: np.ndarray | None = None
+    strain_kind: str = ""
 
 
 @dataclass
 class ContactPoints:
-    """What writers get of a contact group: all its Gauss points, flattened (g,)."""
+    """What writers get of a contact group: all its Gauss points, flattened (g,).
+
+    Signs (a face runs in the element's counter-clockwise order, direction ``t``, body on its
+    left; ``e_v = -t/|t|``): ``tau > 0`` when the friction of the foundation on the body points
+    along ``+t`` (a bottom face: +x; a top face: -x); the signed slip ``vp > 0`` when the body
+    has slid along ``e_v`` relative to the foundation (a bottom face: towards -x), so a sliding
+    point has ``tau`` and ``dvp`` of one sign.  ``gap`` follows COPEN (Abaqus, CalculiX):
+    positive when open, ``-d`` (minus the penetration) where the normal meets the foundation;
+    where it meets none (status NONE) the distance from P to the nearest point of the
+    foundation."""
     name: str                     # "<surface>-><foundation>"
     element: np.ndarray           # (g,) deck id of the solid element owning the face
     face: np.ndarray              # (g,) face number 1..
@@ -73,14 +88,27 @@ class ContactPoints:
     x: np.ndarray                 # (g, 2) current position of the point P
     p: np.ndarray
     tau: np.ndarray
-    gap: np.ndarray               # signed distance d (> 0 penetration)
-    slip: np.ndarray              # accumulated slip
+    gap: np.ndarray               # COPEN: > 0 open, -penetration in contact
+    slip: np.ndarray              # accumulated |slip| (the law's slip)
     lam: np.ndarray
-    status: np.ndarray            # int8 OPEN/STICK/SLIP (lagamine_py.core.status)
+    status: np.ndarray            # int8 OPEN/STICK/SLIP/NONE (lagamine_py.core.status)
     P: float                      # total normal force: integral of p over the current surface
     T: float                      # total tangential force: integral of tau
     A: float = float("nan")       # current area (length x thickness, or per radian) of points in contact
     F: np.ndarray | None = None   # (2,) resultant force of the foundation on the body (sum of nodal forces)
+    x0: np.ndarray | None = None  # (g, 2) reference position of P (default: x)
+    vp: np.ndarray | None = None  # (g,) signed slip (default 0)
+    dvp: np.ndarray | None = None     # (g,) signed slip of the last increment (default 0)
+    dissip: np.ndarray | None = None  # (g,) frictional dissipation per unit area D (default 0)
+    E: float = 0.0                # energy the pair has dissipated: sum over increments of int dD dA
+
+    def __post_init__(self):
+        g = len(np.asarray(self.p).ravel())
+        if self.x0 is None:
+            self.x0 = np.asarray(self.x, float).reshape(-1, 2).copy()
+        self.vp = np.zeros(g) if self.vp is None else self.vp
+        self.dvp = np.zeros(g) if self.dvp is None else self.dvp
+        self.dissip = np.zeros(g) if self.dissip is None else self.dissip
 
 
 class Group:
@@ -257,9 +285,12 @@ class Element(Group, Plugin):
         return ""
 
     # -- what writers get -------------------------------------------------------------------------
-    def cell_block(self, u: np.ndarray, state: dict[str, np.ndarray]) -> CellBlock:
+    def cell_block(self, u: np.ndarray, state: dict[str, np.ndarray],
+                   nlgeom: bool = False) -> CellBlock:
         """The group's Gauss values for writers: ``stress`` (Cauchy, e, q, 4) and ``peeq`` from
-        the state (zeros where the state has none)."""
+        the state (zeros where the state has none); no strains (an element that computes them
+        overrides this, as :class:`~lagamine_py.elements.solid.SolidElement` does).
+        ``nlgeom``: the kinematics of the step (which total strain to give)."""
         ne = len(self.ids)
         stress = state.get("stress")
         nq = stress.shape[1] if stress is not None else len(self.gauss_rule()[0])

@@ -77,7 +77,7 @@ import numpy as np
 
 from .. import kernels
 from ..core.errors import ReturnMappingError
-from ..core.status import OPEN, STICK
+from ..core.status import NONE, OPEN, SLIP, STICK
 from ..core.tensors import RIGHT as _R, right_normal as _right
 from ..foundation import Foundation
 from ..laws.base import ContactLaw
@@ -194,7 +194,25 @@ class ContactGroup(Group):
                         and self.foundation.has_kernel() and kernels.module("contact") is not None)
 
     def init_state(self) -> dict[str, np.ndarray]:
-        return self.law.init_state(self.ng)
+        """The law's state of the points, and the group's own: ``dvp`` the signed slip of the
+        last increment and ``energy`` the frictional energy each point has dissipated (see
+        :meth:`_increment_totals`)."""
+        state = self.law.init_state(self.ng)
+        state["dvp"] = np.zeros(self.ng)
+        state["energy"] = np.zeros(self.ng)
+        return state
+
+    def _increment_totals(self, st, state, P, t, geo) -> dict[str, np.ndarray]:
+        """The group's own state after the law's: ``dvp = vp - vp_old`` and ``energy +=
+        (dissip - dissip_old) dA``, ``dA`` the area the forces are integrated on at the end of
+        the increment (so the sum over points and increments is the work of the friction
+        stresses along the slip, as the forces see it)."""
+        wt, _ = self._weights(P, geo)
+        dA = wt * _norm(t)
+        st["dvp"] = np.asarray(st["vp"], float) - np.asarray(state["vp"], float)
+        st["energy"] = (np.asarray(state["energy"], float)
+                        + (np.asarray(st["dissip"], float) - np.asarray(state["dissip"], float)) * dA)
+        return st
 
     def _face_x(self, u) -> np.ndarray:
         """Current face node positions (f, a, 2)."""
@@ -349,7 +367,7 @@ class ContactGroup(Group):
                 new = dict(new)
                 for key in ("p", "tau"):
                     new[key] = np.where(frozen_open, 0.0, new[key])
-                for key in ("lam", "slip", "dissip"):
+                for key in ("lam", "slip", "vp", "dissip"):
                     if key in new and key in st:
                         new[key] = np.where(frozen_open, st[key], new[key])
                 status = np.asarray(new["status"])
@@ -413,6 +431,7 @@ class ContactGroup(Group):
         geo = bool(ctx.nlgeom)
         with np.errstate(invalid="ignore", divide="ignore"):
             st, D, P, t = self._integrate(u_new, u_old, state, ctx, tangent)
+        st = self._increment_totals(st, state, P, t, geo)
         jac = _norm(t)
         p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
         Rt = _right(t)
@@ -466,6 +485,7 @@ class ContactGroup(Group):
             float(self.law.theta), geo, tangent, state, self._frozen(ctx))
         if not reuse:
             self._start_cache = (geo, self.foundation, xo, np.array(co, float), d_start)
+        st = self._increment_totals(st, state, *self._axes_t(xn, geo), geo)
         if snap:
             raise ReturnMappingError(self.law.failure_message)
         failure = None
@@ -494,13 +514,16 @@ class ContactGroup(Group):
     def points(self, u_new, state, ctx: StepContext):
         """Contact points for writers (:class:`~lagamine_py.elements.base.ContactPoints`).
 
-        ``x`` current P; ``p``, ``tau``, ``slip``, ``lam``, ``status`` from ``state``; ``gap``
-        the signed distance d at the end configuration (NaN where the line misses the
-        foundation); totals over the surface the forces are integrated on (the current face
-        with NLGEOM, the reference face otherwise), ``dA = thickness ds`` (plane strain) or
-        ``r ds`` (axisymmetry, per radian): ``P = int p dA``, ``T = int tau dA``, ``A = int
-        dA`` over the points in contact (status not OPEN), and ``F`` (2,) the resultant force
-        of the foundation on the body, ``-sum f`` (sum of the nodal contact forces)."""
+        ``x`` current P and ``x0`` its reference position; ``p``, ``tau``, ``slip``, ``vp``,
+        ``dvp``, ``lam``, ``dissip``, ``status`` from ``state``, except that a point whose
+        normal misses the foundation at the end configuration has status NONE; ``gap`` in the
+        COPEN convention, ``-d`` (positive when open), or for a NONE point the distance from P
+        to the foundation.  Totals over the surface the forces are integrated on (the current
+        face with NLGEOM, the reference face otherwise), ``dA = thickness ds`` (plane strain)
+        or ``r ds`` (axisymmetry, per radian): ``P = int p dA``, ``T = int tau dA``, ``A = int
+        dA`` over the points in contact (status STICK or SLIP), ``F`` (2,) the resultant force
+        of the foundation on the body, ``-sum f`` (sum of the nodal contact forces), and ``E``
+        the energy dissipated by friction (the sum of the points' ``energy``)."""
         geo = bool(ctx.nlgeom)
         c = self._translation(ctx, "new")
         P, t = self._axes_t(self._face_x(u_new), geo)
@@ -510,14 +533,20 @@ class ContactGroup(Group):
         dA = wt * np.linalg.norm(t, axis=-1)
         p = np.asarray(state["p"], float)
         tau = np.asarray(state["tau"], float)
-        status = np.asarray(state["status"], np.int8)
+        status = np.where(pr.found, np.asarray(state["status"], np.int8), NONE).astype(np.int8)
+        gap = np.where(pr.found, -pr.d, 0.0)
+        if not pr.found.all():
+            gap[~pr.found] = self.foundation.distance(P[~pr.found], c)
         vec = p[:, None] * _right(t) - tau[:, None] * t
         F = -np.einsum("gi,g->i", vec, wt)                         # sum_a N_a = 1 on a face
+        closed = (status == STICK) | (status == SLIP)
         return ContactPoints(
             name=self.name, element=np.repeat(self.ids, self.nq),
             face=np.repeat(self.faces, self.nq), gauss=np.tile(np.arange(1, self.nq + 1), self.nf),
-            x=P, p=p, tau=tau, gap=np.where(pr.found, pr.d, np.nan),
-            slip=np.asarray(state["slip"], float),
+            x=P, p=p, tau=tau, gap=gap, slip=np.asarray(state["slip"], float),
             lam=np.asarray(state["lam"], float), status=status,
             P=float(np.sum(p * dA)), T=float(np.sum(tau * dA)),
-            A=float(np.sum(dA[status != OPEN])), F=F)
+            A=float(np.sum(dA[closed])), F=F, x0=self._P0.copy(),
+            vp=np.asarray(state["vp"], float), dvp=np.asarray(state["dvp"], float),
+            dissip=np.asarray(state["dissip"], float),
+            E=float(np.sum(np.asarray(state["energy"], float))))

@@ -169,6 +169,38 @@ class SolidElement(Element):
         """(e, q, 2) positions of the Gauss points for nodal displacements ``u`` (n, 2)."""
         return np.einsum("qa,eai->eqi", self.N, self.coords0[self.conn] + u[self.conn])
 
+    # -- what writers get -----------------------------------------------------------------------
+    def cell_block(self, u: np.ndarray, state: dict[str, np.ndarray], nlgeom: bool = False):
+        """:meth:`Element.cell_block` with the strains at the Gauss points: the total strain
+        of the displacement ``u`` (the logarithmic strain ``ln V = 1/2 ln(F F^T)`` when
+        ``nlgeom``, else the small strain ``sym grad u``: the measure the element computes
+        with) and the plastic strain ``total - eps_e`` (exact in small strain; under NLGEOM
+        ``ln V - ln V_e``, exact when the elastic and total stretches share their axes, as in
+        proportional loading), both as tensor components [11, 22, 33, 12]."""
+        block = super().cell_block(u, state, nlgeom)
+        total = self.total_strain(u, nlgeom)                              # (e, q, 4), g12
+        eps_e = state.get("eps_e")
+        plastic = None if eps_e is None else total - np.asarray(eps_e, float)
+        half_shear = np.array([1.0, 1.0, 1.0, 0.5])
+        block.strain = total * half_shear
+        block.plastic_strain = None if plastic is None else plastic * half_shear
+        block.strain_kind = "log" if nlgeom else "small"
+        return block
+
+    def total_strain(self, u: np.ndarray, nlgeom: bool) -> np.ndarray:
+        """Strain 4-vectors [e11, e22, e33, g12] (engineering shear, as the laws) (e, q, 4) of
+        the nodal displacements ``u`` (n, 2): Hencky ``1/2 ln(F F^T)`` when ``nlgeom``, else
+        ``sym grad u`` (the operator of :meth:`_small_strain`)."""
+        ue = np.asarray(u, float)[self.conn]                              # (e, a, 2)
+        if nlgeom:
+            F, F33, _ = self._deformation(ue)
+            E2 = log_b(F @ np.swapaxes(F, -1, -2))
+            return np.stack([E2[..., 0, 0], E2[..., 1, 1], np.log(F33), 2.0 * E2[..., 0, 1]], -1)
+        H = np.einsum("eai,eqaj->eqij", ue, self.dNdX)                    # du_i / dX_j
+        hoop = (np.einsum("qa,ea->eq", self.N, ue[..., 0]) / self.R0 if self.axisymmetric
+                else np.zeros(H.shape[:2]))
+        return np.stack([H[..., 0, 0], H[..., 1, 1], hoop, H[..., 0, 1] + H[..., 1, 0]], -1)
+
     # -- kinematics ---------------------------------------------------------------------------
     def _operator(self, dNdx: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Strain operator (e, q, s, d): rows [d/dx1, d/dx2, hoop u_r/r, shear] of ``dNdx``."""

@@ -108,10 +108,10 @@ def _dissipation(lv, tau0, p0, dp, dv_c, lam0, dlam, sig):
 
 
 @njit(**_JIT)
-def _coulomb_point(lv, po, tau_old, lam_old, slip_old, dissip_old, status_old, dg, dug, dvg, h_g,
-                   tan):
+def _coulomb_point(lv, po, tau_old, lam_old, slip_old, vp_old, dissip_old, status_old, dg, dug,
+                   dvg, h_g, tan):
     """``Coulomb._update`` at one point (``h_g`` its hold, -1 free): returns ``p, tau, lam,
-    slip, dissip, status, snap_back`` and fills ``tan`` (14,) in the order of TAN_KEYS;
+    slip, vp, dissip, status, snap_back`` and fills ``tan`` (14,) in the order of TAN_KEYS;
     ``snap_back``: the return met ``KT + H <= 0`` (the NumPy path raises ReturnMappingError)."""
     kp, kt = lv[_KP], lv[_KT]
     classical, predictor = lv[_CLASSICAL] != 0.0, lv[_PREDICTOR] != 0.0
@@ -240,7 +240,7 @@ def _coulomb_point(lv, po, tau_old, lam_old, slip_old, dissip_old, status_old, d
     tan[13] = lam_d + lam_du
     status = (SLIP if plastic else STICK) if contact else OPEN
     return (p1, tau_tr - skt * dlam if contact else 0.0, lam0 + dlam, slip_old + abs(dlam),
-            dissip_old + ddis, status, bad)
+            vp_old + sig * dlam, dissip_old + ddis, status, bad)
 
 
 _NO_HOLD = np.full(0, -1, np.int64)
@@ -432,9 +432,9 @@ def _penetration(geo, touch_tol, far, x, e, Nq, dNq, t0_0, t0_1, c, A, B, C, sta
 @njit(**_JIT)
 def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, xo, xn, N, dN, W,
              t0, P0, At, RAt, AP0, start_needed, d_start, co, cn, A, B, C, start_o, start_t,
-             end_o, end_t, s_tol, cos_min, lv, p_old, tau_old, lam_old, slip_old, dissip_old,
-             status_old, hold, has_hold, p_new, tau_new, lam_new, slip_new, dissip_new,
-             status_new, outside, f, K):
+             end_o, end_t, s_tol, cos_min, lv, p_old, tau_old, lam_old, slip_old, vp_old,
+             dissip_old, status_old, hold, has_hold, p_new, tau_new, lam_new, slip_new, vp_new,
+             dissip_new, status_new, outside, f, K):
     """``ContactGroup.compute`` (``_integrate`` and the forces/tangent) point by point for the
     COULOMB law against a :class:`~lagamine_py.foundation.Foundation`: the same formulas in
     the same order; derivatives known to be zero are skipped as there.  Arrays: ``xo``, ``xn``
@@ -510,7 +510,7 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
             # the sub-intervals (ContactGroup._integrate)
             h_g = hold[g] if has_hold else -1
             sp, stau, slam = p_old[g], tau_old[g], lam_old[g]
-            sslip, sdis, sstat = slip_old[g], dissip_old[g], status_old[g]
+            sslip, svp, sdis, sstat = slip_old[g], vp_old[g], dissip_old[g], status_old[g]
             d_prev = d_start[g]
             have_prev = False
             zp = ztau = zlam = True
@@ -541,8 +541,8 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
                 dv10, dv11 = -(0.0 - h1 * h0) / nv, -(1.0 - h1 * h1) / nv
                 dv = ev0 * rel0 + ev1 * rel1
                 du = d_k - d_prev
-                np_, ntau, nlam, nslip, ndis, nstat, snap = _coulomb_point(
-                    lv, sp, stau, slam, sslip, sdis, sstat, d_k, du, dv, h_g, tl)
+                np_, ntau, nlam, nslip, nvp, ndis, nstat, snap = _coulomb_point(
+                    lv, sp, stau, slam, sslip, svp, sdis, sstat, d_k, du, dv, h_g, tl)
                 bad += snap
                 if tangent:
                     for a in range(na):
@@ -593,12 +593,13 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
                     zp = ztau = False
                     zlam = not lam_needed
                 if h_g == OPEN:                    # held open by the solver
-                    np_, ntau, nlam, nslip, ndis, nstat = 0.0, 0.0, slam, sslip, sdis, OPEN
+                    np_, ntau, nlam, nslip, nvp, ndis, nstat = (0.0, 0.0, slam, sslip, svp,
+                                                                sdis, OPEN)
                     if tangent:
                         Dp[:] = 0.0
                         Dtau[:] = 0.0
                         Dlam[:] = 0.0
-                sp, stau, slam, sslip, sdis, sstat = np_, ntau, nlam, nslip, ndis, nstat
+                sp, stau, slam, sslip, svp, sdis, sstat = np_, ntau, nlam, nslip, nvp, ndis, nstat
                 d_prev = d_k
                 Dd_prev[:] = Dd_k
                 have_prev = True
@@ -607,7 +608,7 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
             if tangent and ztau:
                 Dtau[:] = 0.0
             p_new[g], tau_new[g], lam_new[g] = sp, stau, slam
-            slip_new[g], dissip_new[g], status_new[g] = sslip, sdis, sstat
+            slip_new[g], vp_new[g], dissip_new[g], status_new[g] = sslip, svp, sdis, sstat
             # Coulomb.outside_cone
             b1, _ = _clipped(lv[_B], lv[_HB], slam)
             phi1, _ = _clipped(lv[_PHI], lv[_HPHI], slam)
@@ -706,7 +707,7 @@ def contact_group(element, chain, law_vector, xo, xn, reuse, d_start, co, cn, ns
     nd, ng = 2 * na, nf * N.shape[0]
     if not reuse:
         d_start = np.empty(ng)
-    out = np.empty((5, ng))
+    out = np.empty((6, ng))
     status = np.empty(ng, np.int8)
     outside = np.empty(ng, np.bool_)
     f = np.empty((nf, nd))
@@ -717,10 +718,10 @@ def contact_group(element, chain, law_vector, xo, xn, reuse, d_start, co, cn, ns
                      RAt, AP0, not reuse, d_start, c(co, float), c(cn, float), A, B, C, so, st,
                      eo, et, s_tol, cos_min, law_vector, c(state["p"], float),
                      c(state["tau"], float), c(state["lam"], float), c(state["slip"], float),
-                     c(state["dissip"], float), c(state["status"], np.int8), hold,
-                     frozen is not None, out[0], out[1], out[2], out[3], out[4], status, outside,
-                     f, K)
-    new_state = dict(p=out[0], tau=out[1], lam=out[2], slip=out[3], dissip=out[4],
+                     c(state["vp"], float), c(state["dissip"], float), c(state["status"], np.int8),
+                     hold, frozen is not None, out[0], out[1], out[2], out[3], out[4], out[5],
+                     status, outside, f, K)
+    new_state = dict(p=out[0], tau=out[1], lam=out[2], slip=out[3], vp=out[4], dissip=out[5],
                      status=status)
     for k, v in state.items():                # entries the law does not own: copied through
         if k not in new_state:

@@ -89,8 +89,10 @@ class ContactLaw(Parametrized):
 
     ``state`` / ``new_state``: dicts of (g,) arrays holding at least :data:`STATE_KEYS`:
     ``p`` (>= 0), ``tau``, ``lam`` (the plastic multiplier), ``slip`` (accumulated
-    ``|dlam|``), ``dissip`` (``int |tau| dlam``, the frictional dissipation per unit area) and
-    ``status`` (int8 OPEN/STICK/SLIP of :mod:`lagamine_py.core.status`).
+    ``|dlam|``), ``vp`` (the signed slip ``int sgn(tau) dlam``: the paper's plastic tangential
+    displacement, positive along ``e_v``), ``dissip`` (``int |tau| dlam``, the frictional
+    dissipation per unit area, the paper's D) and ``status`` (int8 OPEN/STICK/SLIP of
+    :mod:`lagamine_py.core.status`; a law never returns NONE).
 
     ``frozen``: None, or (g,) int8: -1 leaves a point free, OPEN/STICK/SLIP hold it in that
     status for this sub-interval (the solver's flip-flop control: STICK is elastic even
@@ -118,7 +120,7 @@ class ContactLaw(Parametrized):
     """
 
     #: the arrays of every contact point's state
-    STATE_KEYS = ("p", "tau", "lam", "slip", "dissip", "status")
+    STATE_KEYS = ("p", "tau", "lam", "slip", "vp", "dissip", "status")
     #: outputs and inputs of the tangent's keys ``<out>_<in>``
     TANGENT_OUT = ("p", "tau", "lam")
     TANGENT_IN = ("u", "v", "d", "p", "tau", "lam")
@@ -137,7 +139,7 @@ class ContactLaw(Parametrized):
         """State of ``n`` points at t = 0: open, nothing slipped."""
         z = np.zeros(n)
         return {"p": z.copy(), "tau": z.copy(), "lam": z.copy(), "slip": z.copy(),
-                "dissip": z.copy(), "status": np.zeros(n, dtype=np.int8)}
+                "vp": z.copy(), "dissip": z.copy(), "status": np.zeros(n, dtype=np.int8)}
 
     def update(self, state, d, du, dv, frozen=None):
         """Integrate one sub-interval of every point; see the class docstring."""

@@ -13,7 +13,7 @@ from .base import ContactLaw
 
 __all__ = ["drive_contact_point"]
 
-_FIELDS = ("p", "tau", "lam", "slip", "dissip", "status")
+_FIELDS = ("p", "tau", "lam", "slip", "vp", "dissip", "status")
 
 
 def drive_contact_point(law: ContactLaw, u_path, v_path, substeps: int | None = None,
@@ -38,7 +38,7 @@ def drive_contact_point(law: ContactLaw, u_path, v_path, substeps: int | None = 
 
     Returns
     -------
-    dict of arrays (N+1,) or (N+1, g): ``p``, ``tau``, ``lam``, ``slip``, ``dissip``,
+    dict of arrays (N+1,) or (N+1, g): ``p``, ``tau``, ``lam``, ``slip``, ``vp``, ``dissip``,
     ``status`` at the path points, plus the path itself as ``u`` and ``v``.
     """
     u = np.asarray(u_path, float)

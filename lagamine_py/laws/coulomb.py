@@ -57,7 +57,7 @@ closed form and is integrated by 8-point Gauss-Legendre in ``lam`` on each piece
 foundation) is closed with ``p = 0`` and the elastic tangent, so the first iteration of a
 loaded step already has contact stiffness.  *Re-contact* (``p_old == 0`` and ``d >= 0``) starts from ``p = tau = 0`` with the part of ``dv``
 after contact, ``dv d/du`` when ``0 < d <= du``.  *Separation* (``d < 0``): ``p = tau = 0``,
-OPEN; ``lam``, ``slip``, ``dissip`` are kept while open.  In the sub-interval where a point
+OPEN; ``lam``, ``slip``, ``vp``, ``dissip`` are kept while open.  In the sub-interval where a point
 separates (``p_old > 0``, ``d < 0``) the part before ``d`` reaches 0 (fraction
 ``d_old/(d_old - d)`` of ``dv``, ``p`` falling to 0) is integrated like any other, so the slip
 forced by the shrinking cone is not lost; only then are ``p`` and ``tau`` zeroed.
@@ -270,6 +270,7 @@ class Coulomb(ContactLaw):
         new_state = dict(state)
         new_state.update(
             p=p1, tau=tau1, lam=lam0 + dlam, slip=np.asarray(state["slip"], float) + np.abs(dlam),
+            vp=np.asarray(state["vp"], float) + sig * dlam,      # dv_p = dlam sgn(tau)
             dissip=np.asarray(state["dissip"], float) + ddis,
             # OPEN, STICK, SLIP = 0, 1, 2: contact + (plastic and contact), as int8
             status=contact.view(np.int8) + (plastic & contact).view(np.int8))

@@ -5,6 +5,8 @@ WRITERS=`` name (by default :data:`lagamine_py.output.DEFAULT_WRITERS`), and eve
 class says :attr:`Writer.always` -- and calls, in this order:
 
 * ``start_run()`` once;
+* ``initial(result)`` once, with the state at t = 0 (step 1, increment 0), when the run starts
+  from the beginning (not when it resumes);
 * ``start_step(step_number, step)`` at the start of every step (``step`` is the
   :class:`~lagamine_py.model.Step`, with its ``output`` request);
 * ``increment(result)`` after every *converged* increment of the steps whose ``*OUTPUT`` names
@@ -37,7 +39,8 @@ class IncrementResult:
     step: int                     # 1-based step number
     step_name: str
     increment: int                # 1-based within the step
-    time: float                   # total time at the end of the increment
+    time: float                   # total time at the end of the increment (rounded: see
+                                  # lagamine_py.solver.steps.round_time)
     step_time: float              # time within the step
     dt: float
     iterations: int
@@ -52,6 +55,7 @@ class IncrementResult:
     foundations: dict[str, np.ndarray] = field(default_factory=dict)   # name -> (m,2) current points
     write_fields: bool = True     # this increment is due for field output (*OUTPUT FREQUENCY)
     residual_history: list[float] = field(default_factory=list)
+    loads: dict[str, float] = field(default_factory=dict)   # the step's loads reached: label -> value
 
 
 @dataclass
@@ -90,6 +94,8 @@ class Writer(Plugin):
         self.append = bool(append)
 
     def start_run(self) -> None: ...
+
+    def initial(self, result: "IncrementResult") -> None: ...
 
     def start_step(self, step_number: int, step) -> None: ...
 

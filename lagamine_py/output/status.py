@@ -2,11 +2,14 @@
 
 ``<deck>.sta`` is a CSV (read back by :func:`lagamine_py.results.read_table`)::
 
-    step,step_name,increment,time,dt,iterations,residual,cutbacks,failed,reason
+    step,step_name,increment,time,dt,iterations,residual,cutbacks,failed,reason,load
 
 one row per converged increment (``failed`` = ``no``) and one per failed attempt
 (``failed`` = ``yes``, ``reason`` says why; ``time`` and ``dt`` are those attempted), in the
 order they happened, flushed each time: a glance at the tail tells how a run is going.
+``load``: the loads the step drives, reached at that increment
+(:func:`lagamine_py.solver.loads.driving_loads`), as ``label=value`` items separated by ``; ``
+(``U1 BLOCK_RIGHT=-0.005; P PRESSED=200``); ``lagamine-py plot`` labels its states with them.
 
 ``<deck>.log`` holds the run's messages: a start line, the Newton residual history of every
 converged increment, every failed attempt with its reason, the final line with the exit status,
@@ -26,13 +29,30 @@ from .base import FailedAttempt, IncrementResult, Writer
 from .tables import CsvFiles
 
 STA_HEADER = ("step", "step_name", "increment", "time", "dt", "iterations", "residual",
-              "cutbacks", "failed", "reason")
+              "cutbacks", "failed", "reason", "load")
 LOGGER = "lagamine_py"
 LOG_FORMAT = "%(asctime)s %(levelname)-7s %(name)s: %(message)s"
 
 
 def _g(x) -> str:
     return "" if x is None else repr(float(x))      # shortest exact text
+
+
+def load_text(loads: dict[str, float]) -> str:
+    """``{"U1 RIGHT": -0.005, "P TOP": 200.0}`` -> ``"U1 RIGHT=-0.005; P TOP=200.0"``."""
+    return "; ".join(f"{label}={float(v)!r}" for label, v in loads.items())
+
+
+def parse_load_text(text: str) -> dict[str, float]:
+    """The inverse of :func:`load_text` (items that do not read as ``label=number`` skipped)."""
+    out = {}
+    for item in str(text or "").split(";"):
+        label, eq, value = item.strip().rpartition("=")
+        try:
+            out[label.strip()] = float(value)
+        except ValueError:
+            continue
+    return {k: v for k, v in out.items() if k}
 
 
 def _now() -> str:
@@ -64,10 +84,13 @@ class StatusWriter(Writer):
         self.step_name = ""
         self._attach_handler()
         heading = self.model.heading
+        units = tuple(self.model.units)
         n_nodes = len(self.model.node_ids)
         n_elem = sum(len(b.ids) for b in self.model.blocks)
         self._line(f"lagamine-py run of deck {deck} {'resumed' if append else 'started'} {_now()}: "
                    f"{n_nodes} nodes, {n_elem} elements"
+                   + (f"; units: length {units[0]}, force {units[1]}, stress {units[2]}"
+                      if len(units) == 3 else "")
                    + (f"; heading: {heading.strip()}" if heading and heading.strip() else ""))
 
     def _sta_row(self, step: int, increment: int, row: list) -> None:
@@ -99,7 +122,7 @@ class StatusWriter(Writer):
     def increment(self, r: IncrementResult) -> None:
         self._sta_row(r.step, r.increment,
                       [r.step, r.step_name or self.step_name, r.increment, _g(r.time), _g(r.dt),
-                       r.iterations, _g(r.residual), r.cutbacks, "no", ""])
+                       r.iterations, _g(r.residual), r.cutbacks, "no", "", load_text(r.loads)])
         history = " ".join(f"{x:.3e}" for x in r.residual_history)
         self._line(f"step {r.step} increment {r.increment} converged: time {r.time:.6g}, dt {r.dt:.6g}, "
                    f"{r.iterations} iterations, residual {r.residual:.3e}, cutbacks {r.cutbacks}"
@@ -113,7 +136,7 @@ class StatusWriter(Writer):
         self._sta_row(a.step, a.increment,
                       [a.step, a.step_name or self.step_name, a.increment, _g(a.time + a.dt),
                        _g(a.dt), a.iterations, _g(residual), a.cutbacks, "yes",
-                       a.reason.strip() or "unknown"])
+                       a.reason.strip() or "unknown", ""])
         text = a.message.strip() or a.reason
         self._line(f"step {a.step} increment {a.increment} attempt failed (dt {a.dt:.6g}): {text}"
                    + (f"; residuals {' '.join(f'{x:.3e}' for x in history)}" if history else ""))

@@ -4,7 +4,8 @@ Numbers are written with ``repr`` (the shortest text that reads back to the same
 block of rows per increment, flushed before returning.
 
 * ``contact.csv``: one row per contact Gauss point, on output increments (``write_fields``),
-  unless the step's ``*OUTPUT, CONTACT=NO``.
+  unless the step's ``*OUTPUT, CONTACT=NO``; ``status`` as text (``open``, ``stick``,
+  ``slip``, ``none``).
 * ``contact_totals.csv``: one row per contact pair on every converged increment (cheap, and it
   makes the P(t), T(t) curves independent of the field-output frequency), same CONTACT=NO rule.
 * ``reactions.csv``: one row per imposed-displacement target on every converged increment.
@@ -25,11 +26,16 @@ import numpy as np
 from ..core.status import STATUS_NAMES
 from .base import IncrementResult, Writer
 
-# the trailing ``contact`` column (the pair, as in contact_totals.csv) extends DECKS.md's list:
-# a deck with several contact pairs can be read pair by pair
+# DECKS.md's columns, then, appended so that older tables and their readers keep working:
+# ``contact`` (the pair, as in contact_totals.csv: a deck with several contact pairs is read
+# pair by pair), the signed slip, its increment over the increment and the dissipation D per
+# unit area (ContactPoints.vp, dvp, dissip; their signs in ContactPoints).  ``gap`` follows
+# COPEN (positive when open); results.COPEN_COLUMNS tells these tables from the older ones.
 CONTACT_HEADER = ("step", "increment", "time", "element", "gauss", "x", "y",
-                  "p", "tau", "gap", "slip", "lambda", "status", "contact")
-TOTALS_HEADER = ("step", "increment", "time", "contact", "P", "T")
+                  "p", "tau", "gap", "slip", "lambda", "status", "contact",
+                  "signed_slip", "slip_increment", "dissipation")
+# the energy the pair has dissipated by friction since the start of the run (ContactPoints.E)
+TOTALS_HEADER = ("step", "increment", "time", "contact", "P", "T", "dissipated_energy")
 REACTIONS_HEADER = ("step", "increment", "time", "nset", "RF1", "RF2")
 
 
@@ -158,7 +164,7 @@ class ContactWriter(_CsvWriter):
         head = [str(result.step), str(result.increment), fmt(result.time)[()]]
         if result.write_fields:
             self._points.writerows(row for cp in result.contacts for row in point_rows(head, cp))
-        self._totals.writerows(head + [cp.name, *fmt([cp.P, cp.T])] for cp in result.contacts)
+        self._totals.writerows(head + [cp.name, *fmt([cp.P, cp.T, cp.E])] for cp in result.contacts)
         self._flush()
 
 
@@ -166,9 +172,11 @@ def point_rows(head: list[str], cp) -> list[list[str]]:
     """Rows of contact.csv for one contact pair: ``head`` (step, increment, time) + point values."""
     x = np.asarray(cp.x, float).reshape(-1, 2)
     numbers = fmt(np.column_stack([x, cp.p, cp.tau, cp.gap, cp.slip, cp.lam]))
+    more = fmt(np.column_stack([cp.vp, cp.dvp, cp.dissip]))
     status = np.asarray(STATUS_NAMES, dtype=object)[np.asarray(cp.status, int)]
     ids = np.column_stack([np.asarray(cp.element, int), np.asarray(cp.gauss, int)]).astype(str)
-    return [head + [*i, *v, s, cp.name] for i, v, s in zip(ids.tolist(), numbers.tolist(), status)]
+    return [head + [*i, *v, s, cp.name, *m]
+            for i, v, s, m in zip(ids.tolist(), numbers.tolist(), status, more.tolist())]
 
 
 class ReactionsWriter(_CsvWriter):

@@ -1,24 +1,48 @@
-"""VTK output: one ``.vtu`` per output increment and part, indexed by a ``.pvd`` collection.
+"""VTK output: one ``.vtu`` per block and output state, indexed by a ``.pvd`` collection.
 
-Parts (the ``part`` attribute of the PVD ``DataSet`` entries):
+Every file opens in ParaView, VTK, pyvista and meshio (``tests/test_vtk_clients.py`` reads every
+file of a run with meshio and VTK).
 
-* ``0`` bodies, ``OUT/<deck>_NNNN.vtu``: the mesh in *reference* coordinates with the
-  displacement as a 3-component vector (ParaView "Warp By Vector" shows the deformed shape).
-  Point data: ``displacement``, ``reaction``, ``stress`` (S11, S22, S33, S12), ``von_mises``,
-  ``PEEQ``, ``node_id``.  Cell data: ``element_id``, ``S11``, ``S22``, ``S33``, ``S12``,
-  ``von_mises``, ``PEEQ``.
-* ``1`` contact Gauss points, ``OUT/<deck>_contact_NNNN.vtu``: VTK_VERTEX cells at the current
-  positions, point data ``p``, ``tau``, ``gap``, ``slip``, ``lambda``, ``status``
-  (0 open, 1 stick, 2 slip), ``element``, ``face``, ``gauss``, ``contact`` (pair index).
-* ``2`` foundations, ``OUT/<deck>_foundation_NNNN.vtu``: one poly-line per foundation through
-  its current points, each 3-point arc sampled with its own interpolation.
+Blocks (``DataSet`` entries of the PVD, each with its ``part`` number and its ``name``):
 
-Nodal stress and PEEQ are *extrapolated* from the Gauss points to the element nodes by the
-element class's recovery (the polynomial through the Gauss values: bilinear for 2x2,
-biquadratic for 3x3, linear for a 3-point triangle; exact for fields the Gauss rule can
-represent), then averaged over the elements sharing the node.  Cell values are Gauss-weight
-means over the reference element (the exact integral mean for affine elements); the cell von
-Mises is the mean of the Gauss-point von Mises values.
+* ``body``, ``OUT/<deck>_NNNN.vtu``: the mesh in *reference* coordinates with the displacement
+  as a 3-component vector (ParaView "Warp By Vector" shows the deformed shape).
+  Point data (nodal values, see :mod:`lagamine_py.output.recovery`): ``displacement`` (U),
+  ``reaction`` (RF), ``stress`` (S: Cauchy, a symmetric tensor in ParaView's order XX, YY, ZZ,
+  XY, YZ, XZ; in axisymmetry X = r, Y = z, Z = hoop), ``von_mises`` and ``pressure``
+  (``-trace/3``, positive in compression) recovered from their Gauss values, ``log_strain``
+  (LE, under NLGEOM: ``ln V``) or ``strain`` (E, small strain) and ``plastic_strain`` (PE, total
+  minus elastic strain), tensors like the stress, ``PEEQ``, ``node_id``.  Cell data (element
+  values: Gauss-weight means over the reference element, exact integral means for affine
+  elements): ``element_id`` and ``element_<name>`` of every point field but the displacement
+  and the reaction.
+* ``contact <pair>`` (one per contact pair), ``OUT/<deck>_contact_<pair>_NNNN.vtu``: the
+  contact Gauss points as VTK_VERTEX cells at their *reference* positions with a
+  ``displacement`` (so that a warp of any scale keeps them on the body).  Point data ``p``,
+  ``tau``, ``gap`` (COPEN: positive when open), ``slip``, ``signed_slip``, ``slip_increment``,
+  ``dissipation`` (per unit area), ``lambda``, ``status`` (codes, named in the field data:
+  arrays ``status_open`` = 0, ``status_stick`` = 1, ``status_slip`` = 2, ``status_none`` =
+  3), ``element``, ``face``, ``gauss``.  Signs: :class:`~lagamine_py.elements.base.ContactPoints`.
+* ``foundation <name>`` (one per foundation), ``OUT/<deck>_foundation_<name>_NNNN.vtu``: line
+  segments through the foundation's reference position, each 3-point arc sampled with its own
+  interpolation (VTK_LINE cells: meshio drops poly-lines), with its rigid ``displacement``.
+
+Every file carries field data ``TIME``, ``STEP``, ``INCREMENT`` and, with ``*UNITS``, an array
+named ``units: length <L>, force <F>, stress <S>`` (text lives in array names: meshio cannot
+read VTK string arrays).  The series starts with the state at t = 0 (:meth:`VtkWriter.initial`),
+and times are the rounded times the step controller hands out.
+
+Encoding: appended data, base64-encoded, uncompressed.  Measured (``python tools/bench.py vtu
+FILE``, median of 12 writes) on a body file of press-slide at 160x80 Q8 (38881 nodes, 12800
+elements, every field): raw appended data 11.6 ms and 12.8 MB, base64 70 ms and 17.1 MB, base64
+with zlib level 1 157 ms and 9.0 MB, raw with LZ4 15 ms and 8.3 MB; at 40x20 (5042 DOFs) base64
+5.0 ms, base64 + zlib 10.3 ms.  LZ4 meshio cannot read at all (``KeyError:
+'vtkLZ4DataCompressor'``); raw appended data meshio reads by looking each array up by its offset
+after renumbering the offsets, which mixes arrays up when a new offset equals an old one (the
+tube's body file with the earlier fields failed so), so raw data is not safe either.  Of the
+encodings every client reads, uncompressed base64 is the fastest; zlib would halve the files and
+double the writing time, which at 40x20 would take the VTK output above 10 % of the run
+(``docs/performance.md``).
 
 Option ``append`` (resuming a run): the existing PVD entries are kept up to, not including, the
 time of the first resumed increment, and the file counter continues after the last kept file.
@@ -35,42 +59,89 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from ..core.status import STATUS_NAMES
 from ..core.tensors import von_mises
 from ..foundation import Foundation
 from .base import CellBlock, IncrementResult, Writer
+from .recovery import RecoveryPlan, nodal_values
 
-VTK_VERTEX, VTK_POLY_LINE = 1, 4
+VTK_VERTEX, VTK_LINE = 1, 3
 SAMPLES_PER_ARC = 16
-STRESS_NAMES = ("S11", "S22", "S33", "S12")
+#: ParaView's order of a symmetric tensor's 6 components
+TENSOR_NAMES = ("XX", "YY", "ZZ", "XY", "YZ", "XZ")
 
 
-def nodal_fields(n_nodes: int, cells: list[CellBlock]) -> tuple[np.ndarray, np.ndarray]:
-    """Nodal stress (n, 4) and PEEQ (n,) from Gauss values, recovered at the element nodes
-    (the element class's :meth:`~lagamine_py.elements.base.Element.recovery_matrix`), then
-    averaged over the elements sharing the node.  Nodes outside every element get zeros."""
-    total = np.zeros((n_nodes, 5))
-    count = np.zeros(n_nodes)
-    for c in cells:
-        gauss = _gauss_values(c)                                  # (e, q, 5)
-        E = c.element.recovery_matrix(gauss.shape[1])
-        at_nodes = np.einsum("aq,eqs->eas", E, gauss)
-        idx = np.asarray(c.conn).ravel()
-        for k in range(5):  # one bincount per component, over all elements at once
-            total[:, k] += np.bincount(idx, weights=at_nodes[..., k].ravel(), minlength=n_nodes)
-        count += np.bincount(idx, minlength=n_nodes)
-    mean = total / np.maximum(count, 1)[:, None]
-    return mean[:, :4], mean[:, 4]
+def tensor6(v4: np.ndarray) -> np.ndarray:
+    """4-vectors [11, 22, 33, 12] (tensor components) (..., 4) -> ParaView's 6 (..., 6)."""
+    v4 = np.asarray(v4, float)
+    out = np.zeros(v4.shape[:-1] + (6,))
+    out[..., :4] = v4
+    return out
 
 
-def _gauss_values(c: CellBlock) -> np.ndarray:
-    """Stack stress (e, q, 4) and peeq (e, q) into (e, q, 5)."""
-    return np.concatenate([np.asarray(c.stress, float),
-                           np.asarray(c.peeq, float)[..., None]], axis=-1)
+def pressure(stress: np.ndarray) -> np.ndarray:
+    """``-(s11 + s22 + s33) / 3`` (positive in compression) of stress 4-vectors (..., 4)."""
+    s = np.asarray(stress, float)
+    return -(s[..., 0] + s[..., 1] + s[..., 2]) / 3.0
+
+
+# -- Gauss fields of the body, as (e, q, k) blocks of scalars --------------------------------
+def body_fields(cells: list[CellBlock], wants) -> list[tuple[str, int, list[np.ndarray]]]:
+    """The body's fields to write: ``(name, components, [Gauss values (e, q, components) per
+    cell block])``; ``wants(code)`` says whether ``*OUTPUT, FIELDS=`` asks for a field
+    (U, S, LE, PE, PEEQ, RF).  A field some block lacks (an element that gives no strains) is
+    left out."""
+    fields = []
+    if wants("S"):
+        fields += [("stress", 4, [c.stress for c in cells]),
+                   ("von_mises", 1, [von_mises(np.asarray(c.stress, float))[..., None] for c in cells]),
+                   ("pressure", 1, [pressure(c.stress)[..., None] for c in cells])]
+    if wants("LE") and cells and all(c.strain is not None for c in cells):
+        kinds = {c.strain_kind for c in cells}
+        name = "log_strain" if kinds == {"log"} else "strain"
+        fields.append((name, 4, [c.strain for c in cells]))
+    if wants("PE") and cells and all(c.plastic_strain is not None for c in cells):
+        fields.append(("plastic_strain", 4, [c.plastic_strain for c in cells]))
+    if wants("PEEQ"):
+        fields.append(("PEEQ", 1, [np.asarray(c.peeq, float)[..., None] for c in cells]))
+    return fields
+
+
+def recovered(n_nodes: int, cells: list[CellBlock], fields, bounded: bool = True,
+              plan: RecoveryPlan | None = None):
+    """``(nodal, element)``: dicts ``{name: values}`` of the ``fields`` (:func:`body_fields`),
+    nodal values (n, ...) by :func:`~lagamine_py.output.recovery.nodal_values` (``plan``: a
+    :class:`~lagamine_py.output.recovery.RecoveryPlan` of the cells' connectivities, kept by
+    the writer across increments) and element values (e, ...) the Gauss-weight means; tensors
+    as ParaView's 6 components."""
+    gauss = [np.concatenate([np.asarray(f[2][b], float).reshape(len(c.conn), -1, f[1])
+                             for f in fields], axis=-1)
+             for b, c in enumerate(cells)]                           # (e, q, k) per block
+    nodal = nodal_values(n_nodes, [(c.element, c.conn, g) for c, g in zip(cells, gauss)], bounded,
+                         plan)
+    means = np.concatenate([np.einsum("q,eqk->ek", c.element.gauss_weights(), g)
+                            for c, g in zip(cells, gauss)])
+    return _split(nodal, fields), _split(means, fields)
+
+
+def _split(values: np.ndarray, fields):
+    """(m, k) stacked components -> {name: (m, components)} (tensors as ParaView's 6)."""
+    out, k = {}, 0
+    for name, ncomp, _ in fields:
+        part = values[:, k:k + ncomp]
+        out[name] = tensor6(part) if ncomp == 4 else part[:, 0]
+        k += ncomp
+    return out
 
 
 def _vec3(a: np.ndarray) -> np.ndarray:
-    a = np.asarray(a, float)
+    a = np.asarray(a, float).reshape(len(a), -1)
     return np.column_stack([a, np.zeros(len(a))]) if a.shape[1] == 2 else a
+
+
+def file_tag(name: str) -> str:
+    """A block name as a file-name part: ``BLOCK_BOTTOM->FLAT`` -> ``BLOCK_BOTTOM-FLAT``."""
+    return re.sub(r"-+", "-", re.sub(r"[^A-Za-z0-9_.]+", "-", name)).strip("-") or "x"
 
 
 _VTK = None
@@ -86,23 +157,25 @@ def _vtk():
 
         from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
         from vtkmodules.vtkCommonCore import (VTK_UNSIGNED_CHAR, vtkDoubleArray, vtkIntArray,
-                                              vtkPoints, vtkStringArray)
+                                              vtkPoints)
         from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkUnstructuredGrid
         from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridWriter
         _VTK = SimpleNamespace(
             numpy_to_vtk=numpy_to_vtk, numpy_to_vtkIdTypeArray=numpy_to_vtkIdTypeArray,
             VTK_UNSIGNED_CHAR=VTK_UNSIGNED_CHAR, vtkDoubleArray=vtkDoubleArray,
-            vtkIntArray=vtkIntArray, vtkPoints=vtkPoints, vtkStringArray=vtkStringArray,
-            vtkCellArray=vtkCellArray, vtkUnstructuredGrid=vtkUnstructuredGrid,
+            vtkIntArray=vtkIntArray, vtkPoints=vtkPoints, vtkCellArray=vtkCellArray,
+            vtkUnstructuredGrid=vtkUnstructuredGrid,
             vtkXMLUnstructuredGridWriter=vtkXMLUnstructuredGridWriter)
     return _VTK
 
 
-def _array(values: np.ndarray, name: str, components: tuple[str, ...] = ()):
-    arr = _vtk().numpy_to_vtk(np.ascontiguousarray(values), deep=True)
+def _array(values: np.ndarray, name: str):
+    values = np.ascontiguousarray(values)
+    arr = _vtk().numpy_to_vtk(values, deep=True)
     arr.SetName(name)
-    for k, comp in enumerate(components):
-        arr.SetComponentName(k, comp)
+    if values.ndim == 2 and values.shape[1] == 6:
+        for k, comp in enumerate(TENSOR_NAMES):
+            arr.SetComponentName(k, comp)
     return arr
 
 
@@ -129,37 +202,51 @@ def _write_vtu(grid, path: Path) -> None:
     writer.SetFileName(str(path))
     writer.SetInputData(grid)
     writer.SetDataModeToAppended()
-    writer.EncodeAppendedDataOff()
-    # LZ4 rather than the default zlib: 17x faster to write, files 1.24x larger (160x80 body:
-    # 5.2 against 88.9 ms, 4.0 against 3.2 MB; uncompressed 6.5 MB)
-    writer.SetCompressorTypeToLZ4()
+    writer.EncodeAppendedDataOn()          # base64: meshio may misread raw appended data
+    writer.SetCompressorTypeToNone()       # LZ4 is unknown to meshio; zlib doubles the time
     if not writer.Write():
         raise OSError(f"could not write {path}")
 
 
-def read_pvd(path: Path) -> list[tuple[float, int, str]]:
-    """(timestep, part, file) of each DataSet of a PVD file."""
+def _field(grid, name: str, value, kind: str = "int") -> None:
+    """One field-data value (TIME, STEP ...; a name-only marker when ``value`` is None)."""
+    vtk = _vtk()
+    arr = vtk.vtkDoubleArray() if kind == "float" else vtk.vtkIntArray()
+    arr.SetName(name)
+    arr.InsertNextValue(0 if value is None else value)
+    grid.GetFieldData().AddArray(arr)
+
+
+def read_pvd(path: Path) -> list[tuple[float, int, str, str]]:
+    """(timestep, part, file, name) of each DataSet of a PVD file."""
     root = ET.parse(path).getroot()
-    return [(float(d.get("timestep", 0)), int(d.get("part", 0)), d.get("file", ""))
-            for d in root.iter("DataSet")]
+    return [(float(d.get("timestep", 0)), int(d.get("part", 0)), d.get("file", ""),
+             d.get("name", "")) for d in root.iter("DataSet")]
 
 
 class VtkWriter(Writer):
-    """VTU files per output increment (bodies, contact points, foundations) and a PVD index."""
+    """VTU files of the body, each contact pair and each foundation per output state; a PVD.
+
+    See the module docstring."""
 
     def __init__(self, outdir, model, append: bool = False):
         super().__init__(outdir, model, append)
         self.fields: set[str] | None = None       # *OUTPUT, FIELDS= of the step; None: all
+        self.parts: dict[str, int] = {"body": 0}  # block name -> part number
+        self._plan: RecoveryPlan | None = None    # the body's recovery plan (fixed mesh)
 
     def start_run(self) -> None:
         self.outdir.mkdir(parents=True, exist_ok=True)
         self.deck = self.model.name or "run"
         self.pvd_path = self.outdir / f"{self.deck}.pvd"
         self.counter = 0
-        self.entries: list[tuple[float, int, str]] = []    # (time, part, file name)
+        self.entries: list[tuple[float, int, str, str]] = []    # (time, part, file, name)
         self._pending_trim = self.append and self.pvd_path.exists()
         if self._pending_trim:
             self.entries = read_pvd(self.pvd_path)
+            for _, part, _, name in self.entries:
+                if name:
+                    self.parts.setdefault(name, part)
         else:
             self._write_pvd()
 
@@ -167,25 +254,33 @@ class VtkWriter(Writer):
         """Drop the entries an interrupted run wrote at or after ``time``; continue the counter."""
         self._pending_trim = False
         self.entries = [e for e in self.entries if e[0] < time]
-        numbers = [int(m.group(1)) for _, _, name in self.entries
+        numbers = [int(m.group(1)) for _, _, name, _ in self.entries
                    if (m := re.search(r"_(\d+)\.vtu$", name))]
         self.counter = max(numbers, default=-1) + 1
         self._write_pvd()
 
+    def initial(self, result: IncrementResult) -> None:
+        """The state at t = 0: the first entries of the series."""
+        self._write_state(result)
+
     def increment(self, result: IncrementResult) -> None:
         if self._pending_trim:
             self._resume_at(float(result.time))
-        if not result.write_fields:
-            return
+        if result.write_fields:
+            self._write_state(result)
+
+    def _write_state(self, result: IncrementResult) -> None:
         stem = f"{self.deck}_{{}}{self.counter:04d}.vtu"
-        parts = [(0, stem.format(""), self._body_grid(result))]
-        if result.contacts:
-            parts.append((1, stem.format("contact_"), self._contact_grid(result)))
-        if result.foundations:
-            parts.append((2, stem.format("foundation_"), self._foundation_grid(result)))
-        for part, name, grid in parts:
-            _write_vtu(grid, self.outdir / name)
-            self.entries.append((float(result.time), part, name))
+        blocks = [("body", stem.format(""), self._body_grid(result))]
+        blocks += [(f"contact {cp.name}", stem.format(f"contact_{file_tag(cp.name)}_"),
+                    self._contact_grid(result, cp)) for cp in result.contacts]
+        blocks += [(f"foundation {name}", stem.format(f"foundation_{file_tag(name)}_"),
+                    self._foundation_grid(result, name, pts))
+                   for name, pts in result.foundations.items()]
+        for name, fname, grid in blocks:
+            _write_vtu(grid, self.outdir / fname)
+            part = self.parts.setdefault(name, len(self.parts))
+            self.entries.append((float(result.time), part, fname, name))
         self.counter += 1
         self._write_pvd()
 
@@ -194,113 +289,88 @@ class VtkWriter(Writer):
         self.fields = set(fields) if fields else None          # None: every field
 
     def _wants(self, name: str) -> bool:
-        """``*OUTPUT, FIELDS=`` of the step asks for ``name`` (U, S, PEEQ, RF), or nothing
-        was asked (all)."""
+        """``*OUTPUT, FIELDS=`` of the step asks for ``name`` (U, S, LE, PE, PEEQ, RF), or
+        nothing was asked (all)."""
         return self.fields is None or name in self.fields
 
     def close(self, status: int, message: str) -> None:
         pass
 
-    # -- parts ---------------------------------------------------------------------------
+    # -- blocks --------------------------------------------------------------------------
     def _body_grid(self, r: IncrementResult):
-        vtk = _vtk()
-
         n = len(r.coords0)
         conn = [np.asarray(c.conn) for c in r.cells]
         types = [np.full(len(c.conn), c.element.vtk_cell) for c in r.cells]
         grid = _grid(_vec3(r.coords0), conn, types)
 
-        want_s, want_peeq = self._wants("S"), self._wants("PEEQ")
         pd = grid.GetPointData()
         if self._wants("U"):
             pd.AddArray(_array(_vec3(r.u), "displacement"))
             pd.SetActiveVectors("displacement")
         if self._wants("RF"):
             pd.AddArray(_array(_vec3(r.reaction), "reaction"))
-        if want_s or want_peeq:
-            s_nod, peeq_nod = nodal_fields(n, r.cells)
-            if want_s:
-                pd.AddArray(_array(s_nod, "stress", STRESS_NAMES))
-                pd.AddArray(_array(von_mises(s_nod), "von_mises"))
-            if want_peeq:
-                pd.AddArray(_array(peeq_nod, "PEEQ"))
-        pd.AddArray(_array(np.asarray(self.model.node_ids, np.int64), "node_id"))
-
+        fields = body_fields(r.cells, self._wants)
         cd = grid.GetCellData()
-        if r.cells:
-            gauss = [_gauss_values(c) for c in r.cells]
-            w = [c.element.gauss_weights() for c in r.cells]
-            mean = np.concatenate([np.einsum("q,eqs->es", wk, g) for wk, g in zip(w, gauss)])
-            vm = np.concatenate([np.einsum("q,eq->e", wk, von_mises(g[..., :4])) for wk, g in zip(w, gauss)])
-            ids = np.concatenate([np.asarray(c.ids, np.int64) for c in r.cells])
-        else:
-            mean, vm, ids = np.zeros((0, 5)), np.zeros(0), np.zeros(0, np.int64)
+        ids = (np.concatenate([np.asarray(c.ids, np.int64) for c in r.cells]) if r.cells
+               else np.zeros(0, np.int64))
         cd.AddArray(_array(ids, "element_id"))
-        if want_s:
-            for k, name in enumerate(STRESS_NAMES):
-                cd.AddArray(_array(mean[:, k], name))
-            cd.AddArray(_array(vm, "von_mises"))
-        if want_peeq:
-            cd.AddArray(_array(mean[:, 4], "PEEQ"))
-        self._add_time(grid, r, vtk)
+        if fields and r.cells:
+            conns = [np.asarray(c.conn) for c in r.cells]
+            if self._plan is None or not self._plan.fits(n, conns):
+                self._plan = RecoveryPlan(n, conns)
+            nodal, element = recovered(n, r.cells, fields, plan=self._plan)
+            for name, values in nodal.items():
+                pd.AddArray(_array(values, name))
+            for name, values in element.items():
+                cd.AddArray(_array(values, f"element_{name}"))
+            if any(f[0] == "stress" for f in fields):
+                pd.SetActiveTensors("stress")
+        pd.AddArray(_array(np.asarray(self.model.node_ids, np.int64), "node_id"))
+        self._add_metadata(grid, r)
         return grid
 
-    def _contact_grid(self, r: IncrementResult):
-        vtk = _vtk()
-
-        cps = r.contacts
-        x = np.concatenate([np.asarray(cp.x, float).reshape(-1, 2) for cp in cps])
+    def _contact_grid(self, r: IncrementResult, cp):
+        x = np.asarray(cp.x, float).reshape(-1, 2)
+        x0 = np.asarray(cp.x0, float).reshape(-1, 2)
         g = len(x)
-        grid = _grid(_vec3(x), [np.arange(g)[:, None]], [np.full(g, VTK_VERTEX)])
+        grid = _grid(_vec3(x0), [np.arange(g)[:, None]], [np.full(g, VTK_VERTEX)])
         pd = grid.GetPointData()
-
-        def cat(values, dtype=float):
-            return np.concatenate([np.asarray(v).ravel() for v in values]).astype(dtype)
-
-        for name, values in (("p", [cp.p for cp in cps]), ("tau", [cp.tau for cp in cps]),
-                             ("gap", [cp.gap for cp in cps]), ("slip", [cp.slip for cp in cps]),
-                             ("lambda", [cp.lam for cp in cps])):
-            pd.AddArray(_array(cat(values), name))
-        for name, values in (("status", [cp.status for cp in cps]),
-                             ("element", [cp.element for cp in cps]),
-                             ("face", [cp.face for cp in cps]), ("gauss", [cp.gauss for cp in cps])):
-            pd.AddArray(_array(cat(values, np.int32), name))
-        pair = np.concatenate([np.full(len(np.asarray(cp.p).ravel()), k, np.int32) for k, cp in enumerate(cps)])
-        pd.AddArray(_array(pair, "contact"))
-        names = vtk.vtkStringArray()
-        names.SetName("contact_names")
-        for cp in cps:
-            names.InsertNextValue(cp.name)
-        grid.GetFieldData().AddArray(names)
-        self._add_time(grid, r, vtk)
+        pd.AddArray(_array(_vec3(x - x0), "displacement"))
+        pd.SetActiveVectors("displacement")
+        for name, values in (("p", cp.p), ("tau", cp.tau), ("gap", cp.gap), ("slip", cp.slip),
+                             ("signed_slip", cp.vp), ("slip_increment", cp.dvp),
+                             ("dissipation", cp.dissip), ("lambda", cp.lam)):
+            pd.AddArray(_array(np.asarray(values, float).ravel(), name))
+        for name, values in (("status", cp.status), ("element", cp.element), ("face", cp.face),
+                             ("gauss", cp.gauss)):
+            pd.AddArray(_array(np.asarray(values).ravel().astype(np.int32), name))
+        for code, status in enumerate(STATUS_NAMES):
+            _field(grid, f"status_{status}", code)
+        self._add_metadata(grid, r)
         return grid
 
-    def _foundation_grid(self, r: IncrementResult):
-        vtk = _vtk()
-
-        lines = [Foundation(p).sample(SAMPLES_PER_ARC) for p in r.foundations.values()]
-        start = np.cumsum([0] + [len(s) for s in lines[:-1]])
-        conn = [np.arange(s0, s0 + len(s))[None, :] for s0, s in zip(start, lines)]
-        grid = _grid(_vec3(np.concatenate(lines)), conn, [np.full(1, VTK_POLY_LINE)] * len(lines))
-        grid.GetCellData().AddArray(_array(np.arange(len(lines), dtype=np.int32), "foundation"))
-        names = vtk.vtkStringArray()
-        names.SetName("foundation_names")
-        for name in r.foundations:
-            names.InsertNextValue(name)
-        grid.GetFieldData().AddArray(names)
-        self._add_time(grid, r, vtk)
+    def _foundation_grid(self, r: IncrementResult, name: str, points):
+        current = Foundation(points).sample(SAMPLES_PER_ARC)
+        spec = self.model.foundations.get(name)
+        reference = (Foundation(spec.points).sample(SAMPLES_PER_ARC)
+                     if spec is not None and np.shape(spec.points) == np.shape(points) else current)
+        m = len(reference) - 1
+        grid = _grid(_vec3(reference), [np.column_stack([np.arange(m), np.arange(1, m + 1)])],
+                     [np.full(m, VTK_LINE)])
+        grid.GetPointData().AddArray(_array(_vec3(current - reference), "displacement"))
+        grid.GetPointData().SetActiveVectors("displacement")
+        self._add_metadata(grid, r)
         return grid
 
-    @staticmethod
-    def _add_time(grid, r: IncrementResult, vtk) -> None:
-        """TIME, STEP, INCREMENT as field data (ParaView shows them with "Python Annotation")."""
-        fd = grid.GetFieldData()
-        for name, value, cls in (("TIME", r.time, vtk.vtkDoubleArray), ("STEP", r.step, vtk.vtkIntArray),
-                                 ("INCREMENT", r.increment, vtk.vtkIntArray)):
-            arr = cls()
-            arr.SetName(name)
-            arr.InsertNextValue(value)
-            fd.AddArray(arr)
+    def _add_metadata(self, grid, r: IncrementResult) -> None:
+        """TIME, STEP, INCREMENT (ParaView shows them with "Python Annotation") and the units."""
+        _field(grid, "TIME", r.time, "float")
+        _field(grid, "STEP", r.step)
+        _field(grid, "INCREMENT", r.increment)
+        units = tuple(self.model.units)
+        if units:
+            _field(grid, "units: " + ", ".join(f"{what} {u}" for what, u in
+                                               zip(("length", "force", "stress"), units)), None)
 
     # -- index ---------------------------------------------------------------------------
     def _write_pvd(self) -> None:
@@ -308,8 +378,8 @@ class VtkWriter(Writer):
         lines = ['<?xml version="1.0"?>',
                  '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
                  "  <Collection>"]
-        lines += [f'    <DataSet timestep="{t!r}" group="" part="{part}" file={quoteattr(name)}/>'
-                  for t, part, name in self.entries]
+        lines += [f'    <DataSet timestep="{t!r}" group="" part="{part}" name={quoteattr(name)} '
+                  f'file={quoteattr(fname)}/>' for t, part, fname, name in self.entries]
         lines += ["  </Collection>", "</VTKFile>", ""]
         tmp = self.pvd_path.with_name(self.pvd_path.name + ".tmp")
         with open(tmp, "w") as fh:

@@ -208,3 +208,52 @@ def step_loads(model, step, reached: Reached, u: np.ndarray, reaction: np.ndarra
 
     return StepLoads(float(step.period), amp_names, list(surfaces), list(foundations),
                      Ramp.build(bc), cl_ramp, Ramp.build(dl), Ramp.build(mo, width=2), targets)
+
+
+def driving_loads(model, step, loads: StepLoads, t: float) -> dict[str, float]:
+    """The loads ``step`` gives that change during it, at step time ``t``: ``{label: value}``,
+    what a user reads as "the load reached" (``lagamine-py plot`` labels its states with them).
+
+    Labels: ``U<dof> <target>`` an imposed displacement (the mean of its nodes' values: they
+    differ only when the nodes started from different displacements), ``P <surface>`` a
+    pressure, ``CF<dof> <target>`` a nodal force (per node), ``<foundation> dx`` / ``dy`` a
+    foundation's translation.  A line whose value stays what it was (a support held at 0) is
+    not a driving load and is left out."""
+    frac, amp = loads._frac(t), loads._amp(model, t)
+    out: dict[str, float] = {}
+
+    def moving(ramp: Ramp, rows: np.ndarray) -> bool:
+        return bool(len(rows)) and bool((ramp.amp[rows] >= 0).any()
+                                        or np.any(ramp.start[rows] != ramp.target[rows]))
+
+    if step.boundaries:
+        values = loads.bc.at(frac, amp)
+        for b in step.boundaries:
+            nodes = np.asarray(b.nodes, np.int64)
+            for c in range(b.first - 1, b.last):
+                rows = np.searchsorted(loads.bc.keys, 2 * nodes + c)
+                if moving(loads.bc, rows):
+                    out[f"U{c + 1} {b.target}"] = float(np.mean(values[rows]))
+    if step.cloads:
+        values = loads.cload.at(frac, amp)
+        for cl in step.cloads:
+            rows = np.flatnonzero(np.isin(loads.cload.keys, 2 * np.asarray(cl.nodes) + cl.dof - 1))
+            if moving(loads.cload, rows):
+                out[f"CF{cl.dof} {cl.target}"] = float(np.mean(values[rows]))
+    if step.dloads:
+        pressures = loads.pressures(model, t)
+        for d in step.dloads:
+            k = loads.surfaces.index(next(s for s in loads.surfaces if s.upper() == d.surface.upper()))
+            rows = np.flatnonzero(loads.dload.keys == k)
+            if moving(loads.dload, rows):
+                out[f"P {d.surface}"] = pressures[loads.surfaces[k]]
+    if step.motions:
+        motions = loads.motions(model, t)
+        for m in step.motions:
+            name = next(f for f in loads.foundations if f.upper() == m.foundation.upper())
+            rows = np.flatnonzero(loads.motion.keys == loads.foundations.index(name))
+            for i, axis in enumerate(("dx", "dy")):
+                if len(rows) and ((loads.motion.amp[rows] >= 0).any()
+                                  or np.any(loads.motion.start[rows, i] != loads.motion.target[rows, i])):
+                    out[f"{name} {axis}"] = float(motions[name][i])
+    return out

@@ -11,20 +11,27 @@ Group states are committed only on convergence.
 
 The run's messages (steps, Newton norms, cut-backs, the stop reason) go to the
 ``lagamine_py.solver`` logger (the STATUS writer copies them into ``OUT/<deck>.log``).
+
+Ctrl-C (KeyboardInterrupt) stops the run between two operations: the writers are closed with
+status 130, every converged increment is written and the restart file holds the last one, so
+``lagamine-py run --restart OUT`` goes on from there.  The :class:`Outcome` carries the lines a
+user reads at the end (:attr:`Outcome.summary`): where the results are, the contact totals per
+pair at the last converged increment, and the wall time.
 """
 from __future__ import annotations
 
 import logging
 import sys
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..core.errors import ConvergenceFailure, SingularMatrixError
-from ..core.exits import EXIT_DIVERGED, EXIT_OK, EXIT_OTHER
+from ..core.exits import EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER
+from ..core.status import NONE, OPEN, SLIP, STICK
 from ..core.params import ParamError, validate_params
 from ..elements.base import StepContext
 from ..model import CONTROL_PARAMS
@@ -32,7 +39,7 @@ from .. import registry
 from ..output import DEFAULT_WRITERS, FailedAttempt, IncrementResult, default_writers
 from . import restart as rs
 from .linear import FreeDofs, make_solver
-from .loads import Reached, StepLoads, step_loads
+from .loads import Reached, StepLoads, driving_loads, step_loads
 from .newton import FLOOR_FRACTION, Settings, solve_increment
 from .predictor import first_iterate
 from .problem import CONTACT, SOLID, Problem, build_problem, dload_surfaces
@@ -44,8 +51,19 @@ log = logging.getLogger("lagamine_py.solver")
 
 @dataclass
 class Outcome:
-    status: int        # 0 all steps done, 3 a step could not converge, 1 other
+    status: int        # 0 all steps done, 3 a step could not converge, 130 interrupted, 1 other
     message: str
+    summary: list[str] = field(default_factory=list)    # the lines a user reads at the end
+
+
+def round_time(t: float, scale: float) -> float:
+    """``t`` rounded to 12 significant digits of ``scale`` (the run's total time): what the
+    steps define, without the float noise of summed increments (1.6749999999999998 -> 1.675,
+    0.30000000000000004 -> 0.3; 0.547265625 stays).  Only the times handed to writers are
+    rounded; the solver keeps its own."""
+    if not (scale > 0 and np.isfinite(t)):
+        return float(t)
+    return round(float(t), 12 - int(np.floor(np.log10(scale))))
 
 
 class StepFailed(Exception):
@@ -119,7 +137,10 @@ class Controller:
         self.writers = dict(writers)
         self.active = list(self.writers.values())      # the writers of the current step
         self.deck_path = str(deck_path) if deck_path is not None else ""
-        self.progress = Progress(enabled=progress)
+        self.total_time = float(sum(float(st.period) for st in model.steps))
+        self.progress = Progress(enabled=progress, total=self.total_time)
+        self.last_contacts: list = []     # the contact points of the last hand-out (summary)
+        self.wall0 = _time.perf_counter()
         n = problem.ndof
         self.u = np.zeros(n)
         self.reaction = np.zeros(n)
@@ -135,19 +156,24 @@ class Controller:
 
     # -- the run ---------------------------------------------------------------------------
     def run(self, restart: bool) -> Outcome:
+        self.wall0 = _time.perf_counter()
         resume = self._load_restart() if restart else None
+        self.progress.start(self.time_offset + (resume or {}).get("t", 0.0))
         for w in self.writers.values():
             w.start_run()
         for advice in self.problem.warnings:
             logging.getLogger("lagamine_py.advice").warning(advice)
         status, message = EXIT_OTHER, "interrupted"
         try:
+            if resume is None:
+                self._hand_out_initial()
             first = resume["step"] if resume else 0
             for si in range(first, len(self.model.steps)):
                 self._run_step(si, _resume_or_none(resume) if si == first else None)
             status = EXIT_OK
-            message = (f"completed {len(self.model.steps)} step(s), {self.total_increments} "
-                       f"increments, time {self.time_offset:g}")
+            names = ", ".join(st.name for st in self.model.steps if st.name)
+            message = (f"completed {len(self.model.steps)} step(s){f' ({names})' if names else ''}, "
+                       f"{self.total_increments} increments, time {self._time(self.time_offset):g}")
             log.info(message)
         except StepFailed as exc:
             status, message = EXIT_DIVERGED, str(exc)
@@ -155,11 +181,48 @@ class Controller:
         except SetupError as exc:
             status, message = EXIT_OTHER, str(exc)
             log.error(message)
+        except KeyboardInterrupt:
+            status, message = EXIT_INTERRUPTED, self._interrupted_text()
+            log.warning(message)
         finally:
             self.progress.end()
             for w in self.writers.values():
                 w.close(status, message)
-        return Outcome(status, message)
+        return Outcome(status, message, self.summary())
+
+    def _time(self, t: float) -> float:
+        """A total time as writers get it: :func:`round_time` on the run's time scale."""
+        return round_time(t, self.total_time)
+
+    def _interrupted_text(self) -> str:
+        if (self.outdir / rs.FILE).exists():
+            return (f"interrupted at time {self._time(self.time_offset):g} (the start of the step "
+                    f"in progress) or later: every converged increment is written; go on with "
+                    f"`lagamine-py run --restart {self.outdir}`")
+        return "interrupted before the first increment converged: nothing to resume"
+
+    def summary(self) -> list[str]:
+        """What a user reads at the end of a run: the contact totals per pair at the last
+        converged increment (P, T, T/P, the points open, stick, slip and without a foundation
+        opposite), where the results are, and the wall time."""
+        lines = []
+        units = tuple(self.model.units)
+        force = f" {units[1]}" if len(units) > 1 else ""
+        for cp in self.last_contacts:
+            st = np.asarray(cp.status)
+            counts = {name: int(np.sum(st == code)) for name, code in
+                      (("open", OPEN), ("stick", STICK), ("slip", SLIP), ("none", NONE))}
+            # a frictionless pair's T is round-off: its ratio reads 0, not -0.0000
+            ratio = ("-" if cp.P == 0 else "0" if abs(cp.T) <= 1e-9 * abs(cp.P)
+                     else f"{cp.T / cp.P:.4f}")
+            lines.append(f"contact {cp.name}: P = {cp.P:.6g}{force}, T = {cp.T:.6g}{force}, "
+                         f"T/P = {ratio}; {len(st)} points: {counts['open']} open, "
+                         f"{counts['stick']} stick, {counts['slip']} slip"
+                         + (f", {counts['none']} facing no foundation" if counts["none"] else ""))
+        pvd = sorted(self.outdir.glob("*.pvd"))
+        lines.append(f"results in {self.outdir}" + (f" (ParaView: {pvd[0]})" if pvd else ""))
+        lines.append(f"wall time {_time.perf_counter() - self.wall0:.1f} s")
+        return lines
 
     def _run_step(self, si: int, resume: dict | None) -> None:
         """Run step ``si`` (from its start, or from ``resume``): the increment loop."""
@@ -188,7 +251,6 @@ class Controller:
             self._save_restart(si, loads, stepper, last)
         self.reached = loads.reached(self.model)
         self.time_offset += stepper.period
-        self.progress.end()
 
     def _setup_step(self, si, step):
         """The step's ``*CONTROLS`` (defaults filled), Newton settings and linear solver; the
@@ -294,24 +356,46 @@ class Controller:
         freq = max(int(step.output.frequency), 1)
         motions = loads.motions(model, t)
         result = IncrementResult(
-            step=si + 1, step_name=step.name, increment=inc, time=self.time_offset + t,
-            step_time=t, dt=dt, iterations=conv.iterations, residual=conv.residual,
+            step=si + 1, step_name=step.name, increment=inc,
+            time=self._time(self.time_offset + t), step_time=round_time(t, self.total_time),
+            dt=dt, iterations=conv.iterations, residual=conv.residual,
             cutbacks=cutbacks, coords0=model.coords, u=u2.copy(), reaction=reaction2.copy(),
-            reactions_by_set=by_set, cells=self._cells(),
+            reactions_by_set=by_set, cells=self._cells(step.nlgeom),
             contacts=self._contacts(u2, conv.ctx),
             foundations={name: np.asarray(spec.points, float) + motions[name]
                          for name, spec in model.foundations.items()},
             write_fields=(inc % freq == 0) or t >= T,
-            residual_history=list(conv.history))
+            residual_history=list(conv.history),
+            loads=driving_loads(model, step, loads, t))
+        self.last_contacts = result.contacts
         log.info("  converged: step %d increment %d, time %g, %d iterations, |R|/F %.3e",
                  si + 1, inc, result.time, conv.iterations, conv.residual)
         for w in self.active:
             w.increment(result)
-        self.progress.update(si, step, t, T, inc, conv.iterations, len(self.model.steps))
+        self.progress.update(si, step, self.time_offset + t, inc, conv.iterations,
+                             len(self.model.steps))
 
-    def _cells(self) -> list:
+    def _hand_out_initial(self) -> None:
+        """The state at t = 0 to the writers (:meth:`Writer.initial`): nothing loaded yet, the
+        foundations where the deck puts them, the contact points as they start."""
+        model, step = self.model, self.model.steps[0] if self.model.steps else None
         u2 = self.u.reshape(-1, 2)
-        return [self.problem.groups[k].cell_block(u2, self.states[k])
+        ctx = StepContext(nlgeom=bool(step and step.nlgeom),
+                          foundation_old={name: np.zeros(2) for name in model.foundations},
+                          foundation_new={name: np.zeros(2) for name in model.foundations})
+        result = IncrementResult(
+            step=1, step_name=step.name if step else "", increment=0, time=0.0, step_time=0.0,
+            dt=0.0, iterations=0, residual=0.0, cutbacks=0, coords0=model.coords, u=u2.copy(),
+            reaction=self.reaction.reshape(-1, 2).copy(), reactions_by_set={},
+            cells=self._cells(bool(step and step.nlgeom)), contacts=self._contacts(u2, ctx),
+            foundations={name: np.asarray(spec.points, float)
+                         for name, spec in model.foundations.items()})
+        for w in self.writers.values():
+            w.initial(result)
+
+    def _cells(self, nlgeom: bool = False) -> list:
+        u2 = self.u.reshape(-1, 2)
+        return [self.problem.groups[k].cell_block(u2, self.states[k], bool(nlgeom))
                 for k in self.problem.indices(SOLID)]
 
     def _contacts(self, u2, ctx) -> list:
@@ -377,21 +461,42 @@ def _resume_or_none(resume):
 
 
 class Progress:
-    """One-line progress bar on a TTY (stderr), plain lines otherwise."""
+    """One-line progress bar of the whole run on a TTY (stderr), plain lines otherwise: the
+    fraction of the run's total time reached, the step, the increment, and an estimate of the
+    time left (the wall time so far scaled by the time left, measured from where this process
+    started: a resumed run does not count the first run's time)."""
 
-    def __init__(self, enabled: bool, stream=None):
+    def __init__(self, enabled: bool, stream=None, total: float = 1.0):
         self.enabled = enabled
         self.stream = stream or sys.stderr
         self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
         self.open_line = False
+        self.total = float(total) if total > 0 else 1.0
         self.t0 = _time.perf_counter()
+        self.start_time = 0.0
 
-    def update(self, si, step, t, T, inc, iterations, nsteps) -> None:
+    def start(self, time: float = 0.0) -> None:
+        """The clock starts now, at the run's time ``time`` (> 0 when resuming)."""
+        self.t0 = _time.perf_counter()
+        self.start_time = float(time)
+
+    def eta(self, time: float) -> float | None:
+        """Seconds left, or None before anything was done."""
+        done = time - self.start_time
+        if done <= 0:
+            return None
+        return (_time.perf_counter() - self.t0) * max(self.total - time, 0.0) / done
+
+    def update(self, si, step, time, inc, iterations, nsteps) -> None:
+        """After a converged increment: ``time`` is the run's total time reached."""
         if not self.enabled:
             return
-        frac = t / T if T > 0 else 1.0
-        text = (f"step {si + 1}/{nsteps} {step.name}: t {t:.4g}/{T:g}  inc {inc}  "
-                f"it {iterations}  {_time.perf_counter() - self.t0:.1f}s")
+        frac = min(max(time / self.total, 0.0), 1.0)
+        eta = self.eta(time)
+        left = "" if eta is None else f"  ETA {_clock(eta)}"
+        text = (f"{100 * frac:3.0f}%  step {si + 1}/{nsteps} {step.name}  time {time:.4g}/"
+                f"{self.total:g}  inc {inc}  it {iterations}  {_clock(_time.perf_counter() - self.t0)}"
+                f"{left}")
         if self.tty:
             bar = "#" * int(20 * frac) + "-" * (20 - int(20 * frac))
             self.stream.write(f"\r[{bar}] {text}\033[K")
@@ -405,3 +510,13 @@ class Progress:
             self.stream.write("\n")
             self.stream.flush()
             self.open_line = False
+
+
+def _clock(seconds: float) -> str:
+    """``42s``, ``3m05s``, ``2h07m``."""
+    s = int(round(seconds))
+    if s < 60:
+        return f"{s}s"
+    if s < 3600:
+        return f"{s // 60}m{s % 60:02d}s"
+    return f"{s // 3600}h{(s % 3600) // 60:02d}m"

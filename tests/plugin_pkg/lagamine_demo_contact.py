@@ -45,7 +45,7 @@ class SimpleFriction(ContactLaw):
         tau = np.where(slip, sign * cone, np.where(stick, trial, 0.0))
         dlam = np.where(slip, (np.abs(trial) - cone) / self.ks, 0.0)
         new = {"p": p, "tau": tau, "lam": state["lam"] + dlam,
-               "slip": state["slip"] + np.abs(dlam),
+               "slip": state["slip"] + np.abs(dlam), "vp": state["vp"] + sign * dlam,
                "dissip": state["dissip"] + np.abs(tau * dlam),
                "status": np.where(slip, SLIP, np.where(stick, STICK, OPEN)).astype(np.int8)}
         kept = np.where(reopened, 0.0, 1.0)            # d tau0 / d tau_old

@@ -1,0 +1,101 @@
+"""Nodal values that never lie: on every example deck, at every output increment, each nodal
+value the VTK writer computes lies within the range of the Gauss values of the elements around
+the node (found here node by node from the cell blocks the writers were handed), and PEEQ >= 0.
+The strains the element hands over check against the homogeneous compression's closed form."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lagamine_py.core.tensors import von_mises
+from lagamine_py.output.vtk import body_fields, recovered
+
+from conftest import DECKS
+
+
+def gauss_values(cell, name):
+    """Gauss values (e, q, k) of a written field, straight from the cell block."""
+    s = np.asarray(cell.stress, float)
+    table = {"stress": s, "von_mises": von_mises(s)[..., None],
+             "pressure": (-(s[..., 0] + s[..., 1] + s[..., 2]) / 3)[..., None],
+             "log_strain": cell.strain, "strain": cell.strain,
+             "plastic_strain": cell.plastic_strain,
+             "PEEQ": np.asarray(cell.peeq, float)[..., None]}
+    return np.asarray(table[name], float)
+
+
+def patch_ranges(n, cells, name):
+    """[min, max] (n, k) over the Gauss values of the elements around each node."""
+    k = gauss_values(cells[0], name).shape[-1]
+    lo, hi = np.full((n, k), np.inf), np.full((n, k), -np.inf)
+    for c in cells:
+        g = gauss_values(c, name)
+        for e, nodes in enumerate(np.asarray(c.conn)):
+            lo[nodes] = np.minimum(lo[nodes], g[e].min(axis=0))
+            hi[nodes] = np.maximum(hi[nodes], g[e].max(axis=0))
+    return lo, hi
+
+
+def _as4(values):
+    """Written values (n,) or (n, 6) -> the Gauss layout (n, 1) or (n, 4)."""
+    return values[:, None] if values.ndim == 1 else values[:, :4]
+
+
+@pytest.mark.parametrize("deck", DECKS, ids=[d.stem for d in DECKS])
+def test_nodal_values_lie_within_the_gauss_values_around_the_node(deck, deck_run):
+    got = deck_run(deck)
+    assert got.outcome.status == 0, got.outcome.message
+    checked = 0
+    for r in got.results:
+        if not r.write_fields:
+            continue
+        n = len(r.coords0)
+        fields = body_fields(r.cells, lambda code: True)
+        nodal, _ = recovered(n, r.cells, fields)
+        assert {"stress", "von_mises", "pressure", "plastic_strain", "PEEQ"} <= set(nodal)
+        for name, values in nodal.items():
+            lo, hi = patch_ranges(n, r.cells, name)
+            used = np.isfinite(lo[:, 0])
+            v = _as4(values)[used]
+            tol = 1e-12 * max(np.abs(lo[used]).max(), np.abs(hi[used]).max(), 1e-300)
+            where = (name, r.step, r.increment)
+            assert (v >= lo[used] - tol).all() and (v <= hi[used] + tol).all(), where
+        assert (nodal["PEEQ"] >= 0).all()
+        checked += 1
+    assert checked
+
+
+def test_tube_von_mises_overshoot_is_gone(deck_run):
+    """tube_hydroform: extrapolated and averaged, the nodal von Mises stress exceeded every
+    Gauss value around the node; recovered, its maximum is at most the largest Gauss value."""
+    got = deck_run(next(d for d in DECKS if d.stem == "tube_hydroform"))
+    r = got.results[-1]
+    fields = [f for f in body_fields(r.cells, lambda code: True) if f[0] == "von_mises"]
+    plain, _ = recovered(len(r.coords0), r.cells, fields, bounded=False)
+    bounded, _ = recovered(len(r.coords0), r.cells, fields)
+    lo, hi = patch_ranges(len(r.coords0), r.cells, "von_mises")
+    gauss_max = max(float(von_mises(np.asarray(c.stress)).max()) for c in r.cells)
+    assert (plain["von_mises"] > hi[:, 0] + 1.0).any()          # MPa above the patch: the lie
+    assert bounded["von_mises"].max() <= gauss_max * (1 + 1e-12)
+
+
+def test_homogeneous_compression_strains(deck_run):
+    """compression_ro (30 % frictionless upsetting of a Ramberg-Osgood cylinder, homogeneous):
+    at every Gauss point the logarithmic strain is ln of the stretches (axial ln(h/H0), radial
+    and hoop ln(r/R0) of the outer radius), the plastic strain is traceless (plastic
+    incompressibility) with PEEQ = sqrt(2/3 PE:PE) (proportional loading)."""
+    got = deck_run(next(d for d in DECKS if d.stem == "compression_ro"))
+    r = got.results[-1]
+    (c,) = r.cells
+    assert c.strain_kind == "log"
+    LE, PE = np.asarray(c.strain), np.asarray(c.plastic_strain)
+    outer = np.isclose(r.coords0[:, 0], 5.0)
+    radius = 5.0 + r.u[outer, 0].mean()
+    np.testing.assert_allclose(LE[..., 1], np.log(7.0 / 10.0), rtol=1e-10)
+    np.testing.assert_allclose(LE[..., 0], np.log(radius / 5.0), rtol=1e-8)
+    np.testing.assert_allclose(LE[..., 2], np.log(radius / 5.0), rtol=1e-8)
+    np.testing.assert_allclose(LE[..., 3], 0.0, atol=1e-12)
+    scale = np.abs(PE).max()
+    np.testing.assert_allclose(PE[..., :3].sum(axis=-1), 0.0, atol=1e-10 * scale)
+    contraction = (PE[..., :3] ** 2).sum(axis=-1) + 2 * PE[..., 3] ** 2
+    np.testing.assert_allclose(np.sqrt(2.0 / 3.0 * contraction), c.peeq, rtol=1e-8)
