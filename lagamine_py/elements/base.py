@@ -18,8 +18,6 @@ looks at a node count: the deck builder, the writers and the plots ask the eleme
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
-
 import numpy as np
 
 from ..core.plugin import Plugin
