@@ -377,6 +377,15 @@ def left_of(a, b, pts):
     return d[0] * r[:, 1] - d[1] * r[:, 0]
 
 
+def fd_det_j(cls, X, p, h=1e-6):
+    """det of dx/dxi of the element X (nen, 2) at natural point p by central differences of
+    the position map (an independent check of the shape function derivatives)."""
+    def pos(q):
+        return cls.shape_functions(np.atleast_2d(q))[0][0] @ X
+    J = np.column_stack([(pos(p + d) - pos(p - d)) / (2 * h) for d in np.eye(2) * h])
+    return np.linalg.det(J)
+
+
 def shoelace(xy):
     """Signed area of the polygon xy (m, 2) (positive when counter-clockwise)."""
     x, y = np.asarray(xy, float).T
@@ -426,13 +435,29 @@ def test_element_contract(name):
     # recovery: a linear field at the Gauss points comes back exactly at the nodes
     lin = lambda p: 0.3 + 1.7 * p[:, 0] - 0.9 * p[:, 1]
     assert np.allclose(cls.recovery_matrix() @ lin(gpts), lin(xi), atol=1e-12)
-    # the Jacobian check samples every face, corners to corners
-    sample = cls.sample_points()
-    for f in cls.faces:
-        a, b = xi[f[0]], xi[f[1]]
-        s = (sample - a) @ (b - a) / ((b - a) @ (b - a))
-        on = np.abs(left_of(a, b, sample)) < 1e-12
-        assert on.sum() >= 5 and np.isclose(s[on].min(), 0) and np.isclose(s[on].max(), 1)
+    # the declared det J space holds det J: a least-squares fit of the monomials of the declared
+    # degree (tensor on the square, total on the triangle) through det J by central differences
+    # of the position map at 60 random points of a randomly distorted element is exact
+    assert cls.reference_domain in ("square", "triangle")
+    X = xi + 0.15 * rng.normal(size=xi.shape)
+    pts = rng.dirichlet(np.ones(cls.nen), size=60) @ xi
+    fd = np.array([fd_det_j(cls, X, p) for p in pts])
+    deg = np.atleast_1d(cls.jacobian_degree)
+    if cls.reference_domain == "square":
+        p_, q_ = (deg[0], deg[-1])
+        basis = np.stack([pts[:, 0]**i * pts[:, 1]**j for i in range(p_ + 1) for j in range(q_ + 1)], 1)
+    else:
+        basis = np.stack([pts[:, 0]**i * pts[:, 1]**j for i in range(deg[0] + 1)
+                          for j in range(deg[0] + 1 - i)], 1)
+    fit = np.linalg.lstsq(basis, fd, rcond=None)[0]
+    assert np.allclose(basis @ fit, fd, atol=1e-7 * np.abs(fd).max())
+    # the turned element (mirror) lists the same nodes, runs the other way, and keeps the edges
+    perm = cls.mirror()
+    assert sorted(perm) == list(range(cls.nen))
+    assert shoelace(xi[perm][[f[0] for f in cls.faces]]) < 0
+    for k, f in enumerate(cls.faces):
+        g = cls.faces[cls.mirror_faces()[k] - 1]
+        assert {perm[g[0]], perm[g[1]]} == {f[0], f[1]}
     good = 0.5 * xi + (np.array([2.0, 1.0]) if cls.axisymmetric else 0.0)
     good = good + 0.05 * rng.normal(size=good.shape)
     inverted = good * np.array([-1.0, 1.0]) + (np.array([6.0, 0.0]) if cls.axisymmetric else 0.0)
