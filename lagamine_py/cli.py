@@ -108,6 +108,8 @@ def _cmd_check(args) -> int:
     model = _load(args.deck, args.param)
     if model is None:
         return EXIT_DECK
+    for notice in model.notices:           # a run logs them as warnings
+        print(f"lagamine-py: notice: {notice}", file=sys.stderr)
     print(f"{args.deck}: OK ({len(model.node_ids)} nodes, "
           f"{sum(len(b.ids) for b in model.blocks)} elements, {len(model.steps)} steps)")
     return EXIT_OK

@@ -169,7 +169,8 @@ def _surface(model, name: str):
 def build_problem(model) -> Problem:
     """Instantiate every group of ``model`` and the sparsity pattern."""
     get = registry.get
-    groups, kinds, names, blocks, advice = [], [], [], [], []
+    groups, kinds, names, blocks = [], [], [], []
+    advice = [f"notice: {n}" for n in model.notices]      # what the deck builder did: in the log too
     laws = {name: get("laws", spec.law)(**spec.params) for name, spec in model.materials.items()}
     for blk in model.blocks:
         law = laws[blk.material] if blk.material in laws else laws[blk.material.upper()]
