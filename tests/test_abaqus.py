@@ -59,7 +59,7 @@ def cae_file(extra_assembly="", instance="*Instance, name=Block-1, part=Block\n 
     out += ["*Nset, nset=Set-All, generate", f"  1,  {len(nodes)},   1",
             "*Elset, elset=Set-All, generate", f"  1,  {len(elems)},   1",
             "*Nset, nset=TopNodes", ", ".join(map(str, top)),
-            f"*Elset, elset=_Top_S3, internal, generate", f"  {top_row[0]},  {top_row[-1]},   1",
+            "*Elset, elset=_Top_S3, internal, generate", f"  {top_row[0]},  {top_row[-1]},   1",
             "*Surface, type=ELEMENT, name=Top", "_Top_S3, S3",
             "** Section: Section-1", "*Solid Section, elset=Set-All, material=Steel", ",",
             "*End Part", "**", "**", "** ASSEMBLY", "**", "*Assembly, name=Assembly", "**", instance.rstrip("\n"),

@@ -37,7 +37,7 @@ PHYSICAL_3, 2, 2, -0.01
 
 
 def msh22(quads=QUADS, extra="", nodes=NODES) -> str:
-    els = [f"1 15 2 4 1 1"]
+    els = ["1 15 2 4 1 1"]
     els += [f"{2 + k} 8 2 1 1 {a} {b} {m}" for k, (a, b, m) in enumerate(BOTTOM)]
     els += [f"{4 + k} 8 2 3 2 {a} {b} {m}" for k, (a, b, m) in enumerate(TOP)]
     els += [f"{6 + k} 16 2 2 1 " + " ".join(map(str, q)) for k, q in enumerate(quads)]

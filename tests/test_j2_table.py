@@ -211,6 +211,8 @@ def test_material_card_errors(tmp_path, material, line, words):
         load_deck(deck)
     assert any(p.line == line and all(w in p.message for w in words) for p in info.value.problems), \
         str(info.value)
+    from lagamine_py.cli import main
+    assert main(["check", str(deck)]) == 2
 
 
 def test_a_j2_table_block_runs_and_yields(tmp_path):

@@ -155,5 +155,5 @@ def test_deck_refuses_the_issues_element_at_its_line(tmp_path, capsys):
     deck.write_text(text)
     assert main(["check", str(deck)]) == 2
     err = capsys.readouterr().err
-    assert f"issue.dat:11: *ELEMENT: element 1 is inverted or degenerate: det J = -0.1" in err
+    assert "issue.dat:11: *ELEMENT: element 1 is inverted or degenerate: det J = -0.1" in err
     assert main(["run", str(deck), "-o", str(tmp_path / "out"), "-q"]) == 2

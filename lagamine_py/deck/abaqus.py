@@ -115,6 +115,7 @@ def advice(name: str) -> str:
 # ---------------------------------------------------------------- parts and instances
 
 _PART_KEYWORDS = ("NODE", "ELEMENT", "NSET", "ELSET", "SURFACE", "SOLID SECTION", "SOLID")
+_STRUCTURE = ("PART", "END PART", "ASSEMBLY", "END ASSEMBLY", "INSTANCE", "END INSTANCE")
 
 
 class _Placement:
@@ -265,8 +266,7 @@ def _placement_map(block: Block, problems: Problems):
 def flatten(blocks: list[Block], problems: Problems) -> list[Block]:
     """The blocks with the ``*PART`` / ``*ASSEMBLY`` / ``*INSTANCE`` structure resolved (see the
     module docstring); decks without it come back as they are."""
-    if not any(b.keyword in ("PART", "ASSEMBLY", "INSTANCE") for b in blocks) and \
-            not any("INSTANCE" in b.params for b in blocks):
+    if not any(b.keyword in _STRUCTURE or "INSTANCE" in b.params for b in blocks):
         return blocks
     out: list[Block] = []
     parts: dict[str, list[Block]] = {}
@@ -276,11 +276,10 @@ def flatten(blocks: list[Block], problems: Problems) -> list[Block]:
     placements: dict[str, _Placement] = {}
     for b in blocks:
         kw = b.keyword
-        if kw in ("PART", "END PART", "ASSEMBLY", "END ASSEMBLY", "INSTANCE", "END INSTANCE") and \
-                not b.broken:
-            params = check_params(KEYWORDS[kw], b, problems)
+        if kw in _STRUCTURE:
+            params = None if b.broken else check_params(KEYWORDS[kw], b, problems)
             if params is None:
-                continue
+                continue                              # reported (the line, or its parameters)
         if kw == "PART":
             if part is not None or assembly is not None:
                 where = f"inside *PART {part[0]}" if part else "inside the *ASSEMBLY"

@@ -30,6 +30,7 @@ __all__ = ["StepContext", "GroupResult", "Group", "Element", "CellBlock", "Conta
            "JacobianCheck"]
 
 _CHUNK = 4096          # elements (or sub-domains) per vectorised chunk: bounded temporaries
+_MAX_OPEN = 250_000    # sub-domains left open beyond this stop the subdivision (refused as undecided)
 
 
 @dataclass
@@ -217,7 +218,8 @@ class Element(Group, Plugin):
         ``floor`` proves the element valid everywhere; a value at a lattice point at or below
         ``floor`` proves it invalid.  Elements the bound does not decide are subdivided (four
         sub-domains a level, only the undecided ones) until it does; one still undecided after
-        ``max_depth`` levels has det J within round-off of ``floor`` somewhere and is refused.
+        ``max_depth`` levels (or when more than 250 000 sub-domains are open) has det J within
+        round-off of ``floor`` somewhere and is refused.
 
         ``coords`` (e, nen, 2); ``floor`` (e,) or a number, default ``1e-10 size^2`` (the
         element's largest coordinate extent).  Vectorised over elements, in chunks."""
@@ -241,7 +243,7 @@ class Element(Group, Plugin):
         origin = np.zeros((len(elem), 2))
         matrix = np.broadcast_to(np.eye(2), (len(elem), 2, 2))
         for _depth in range(max_depth):
-            if not len(elem):
+            if not len(elem) or len(elem) > _MAX_OPEN:                # (a bound on the work)
                 break
             elem = np.repeat(elem, 4)                                # the four children of each
             origin = (origin[:, None, :] + np.einsum("pij,cj->pci", matrix, dom.origins)).reshape(-1, 2)
