@@ -161,8 +161,11 @@ class Controller:
         self.progress.start(self.time_offset + (resume or {}).get("t", 0.0))
         for w in self.writers.values():
             w.start_run()
+        advice_log = logging.getLogger("lagamine_py.advice")
+        for notice in self.problem.notices:
+            advice_log.info(notice)
         for advice in self.problem.warnings:
-            logging.getLogger("lagamine_py.advice").warning(advice)
+            advice_log.warning(advice)
         status, message = EXIT_OTHER, "interrupted"
         try:
             if resume is None:
