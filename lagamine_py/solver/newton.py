@@ -268,7 +268,9 @@ def _linear_solve(solver, free, data, rhs):
     try:
         solver.factor(A)
     except SingularMatrixError as exc:
-        raise SingularMatrixError(free.free[exc.dofs], exc.detail) from None
+        err = SingularMatrixError(free.free[exc.dofs], exc.detail)
+        err.matrix = data                    # for the rigid-body diagnosis of the controller
+        raise err from None
     return solver.solve(rhs)
 
 
