@@ -888,8 +888,29 @@ class _Builder(ImportMixin):
         self._leave_out_unused_nodes()
         self._coincident_nodes()
         self._assemble_blocks()
+        self._energy_laws()
         if not self.pb:
             self._foundation_sides()
+
+    def _energy_laws(self) -> None:
+        """``*CHECK, TYPE=ENERGY`` needs every material law and contact law to report its energy
+        (:meth:`MaterialLaw.energy`, :meth:`ContactLaw.stored_energy`): refused here, as the run
+        would refuse it."""
+        checks = [c for c in self.m.checks if c["type"] == "ENERGY"]
+        if not checks:
+            return
+        specs = [("laws", m.law, m.params, m.where) for m in self.m.materials.values()]
+        specs += [("contact_laws", c.type, c.params, c.where) for c in self.m.contact_laws.values()]
+        for kind, name, params, where in specs:
+            law = registry.get(kind, name)(**params)
+            try:
+                if kind == "laws":
+                    st = law.init_state((1, 1))
+                    law.energy(st, st)
+                else:
+                    law.stored_energy(law.init_state(1))
+            except NotImplementedError as exc:
+                self.pb.at(checks[0]["where"], f"TYPE=ENERGY: {exc} (defined at line {where.line})")
 
     def _foundation_sides(self) -> None:
         """Each foundation must have its contact bodies on its left (the direction of travel of

@@ -123,6 +123,8 @@ class ContactPoints:
                                   # reference point (its current position; counter-clockwise)
     stored: float = float("nan")  # energy stored in the contact springs (ContactLaw.stored_energy)
     stabilisation: float = 0.0    # energy the contact stabilisation has dissipated since the start
+    friction: float = 0.0         # frictional dissipation since the start, in the trapezoidal form
+                                  # of the energy balance (E: the law's integral along increments)
 
     def __post_init__(self):
         g = len(np.asarray(self.p).ravel())

@@ -87,13 +87,17 @@ moment the tool exerts on the body.  The tangent is their exact derivative (the 
 with P and with the tool).
 
 Contact stabilisation (``ctx.stabilisation[name] = (kn, kt, range)``, set by the step controller
-from ``*CONTACT STABILIZATION``): on the points that end the increment open (status OPEN) within
-``range`` of the foundation (and whose normal met it at the start), a viscous normal traction
-``p_s = kn (d_end - d_start)`` and a tangential one ``tau_s = kt sum_k dv_k`` are added to p and
-tau in the forces, with their exact derivatives.  They resist the approach and the sliding of a
-body or tool that nothing else holds yet, and vanish where the contact is closed; their work
-``(p_s dd + tau_s dv) dA`` is kept per point in the state (``stab``), ``ps`` and ``ts`` the tractions
-of the last increment.
+from ``*CONTACT STABILIZATION``): on the points within ``range`` of the foundation (whose normal
+met it at the start and at the end of the increment), a viscous normal traction ``p_s = kn w_n
+(d_end - d_start)`` and a tangential one ``tau_s = kt w_t sum_k dv_k`` are added to p and tau in
+the forces, with their exact derivatives.  ``w_n`` is 1 in contact and fades to 0 at the range;
+``w_t`` acts on open points only, 0 at touching and at the range (:func:`_stab_weights`): both
+continuous, so a point that closes or opens sees no jump of its force (a jump makes Newton
+chatter).  They resist the approach and the sliding of a body or tool that nothing else holds
+yet; where the contact is closed the normal one only resists the change of the penetration
+(``kn << KP``).  ``ps`` and ``ts`` are the tractions of the last increment; their work,
+in the trapezoidal form of the energy balance, is kept per point in the state (``stab``, see
+:meth:`ContactGroup._increment_totals`).
 
 Chaining the law's derivatives.  The law (``lagamine_py.laws.base.ContactLaw``) returns, per
 sub-interval, derivatives named ``<out>_<in>`` with ``out`` in ``p, tau, lam`` and ``in`` in
@@ -129,7 +133,7 @@ def _norm(t):
 _I2 = np.eye(2)
 _OUT = ("p", "tau", "lam")
 #: the group's own state arrays (besides the law's): see init_state and the module doc
-_OWN = ("dvp", "energy", "ps", "ts", "stab")
+_OWN = ("dvp", "energy", "fdis", "ps", "ts", "stab")
 
 
 def _unit(t):
@@ -152,6 +156,23 @@ def _as_placement(v) -> tuple[np.ndarray, float]:
         return np.asarray(v[0], float), float(v[1])
     a = np.asarray(v, float).ravel()
     return a[:2].copy(), (float(a[2]) if a.size > 2 else 0.0)
+
+
+def _stab_weights(d_end, d_start, rng):
+    """The stabilisation's weights and their derivatives in ``d_end``: normal ``w_n = 1`` in
+    contact (``d >= 0``), ``1 + d/range`` down to 0 at the range; tangential ``w_t = 4 s (1 - s)``
+    with ``s = -d/range`` on the open points within the range, 0 elsewhere.  Both are continuous
+    where the law is (at closing ``p`` and the re-contact ``tau`` start from 0), so a point
+    crossing ``d = 0`` sees no jump; 0 where the normal missed the foundation at either end."""
+    ok = (d_end > -rng) & (d_start > -0.5 * FAR)
+    closed = ok & (d_end >= 0.0)
+    gap = ok & (d_end < 0.0)
+    x = np.where(gap, -d_end / rng, 0.0)
+    wn = np.where(closed, 1.0, np.where(gap, 1.0 - x, 0.0))
+    dwn = np.where(gap, 1.0 / rng, 0.0)
+    wt = np.where(gap, 4.0 * x * (1.0 - x), 0.0)
+    dwt = np.where(gap, -4.0 * (1.0 - 2.0 * x) / rng, 0.0)
+    return wn, dwn, wt, dwt
 
 
 def _placement_key(place) -> np.ndarray:
@@ -261,7 +282,7 @@ class ContactGroup(Group):
         state = self.law.init_state(self.ng)
         state["dvp"] = np.zeros(self.ng)
         state["energy"] = np.zeros(self.ng)
-        for key in _OWN[2:]:                 # the stabilisation (ps, ts, stab): see the module doc
+        for key in _OWN[2:]:          # fdis and the stabilisation (ps, ts, stab): module doc
             state[key] = np.zeros(self.ng)
         return state
 
@@ -282,16 +303,30 @@ class ContactGroup(Group):
                 new[key] = np.array(value, copy=True)
         return new
 
-    def _increment_totals(self, st, state, P, t, geo) -> dict[str, np.ndarray]:
-        """The group's own state after the law's: ``dvp = vp - vp_old`` and ``energy +=
+    def _increment_totals(self, st, state, P, t, geo, d_start, d_end, dv) -> dict[str, np.ndarray]:
+        """The group's own state after the law's: ``dvp = vp - vp_old``; ``energy +=
         (dissip - dissip_old) dA``, ``dA`` the area the forces are integrated on at the end of
         the increment (so the sum over points and increments is the work of the friction
-        stresses along the slip, as the forces see it)."""
+        stresses along the slip, as the forces see it); and in the trapezoidal form of the
+        energy balance (:mod:`lagamine_py.solver.energy`), ``fdis += 1/2 (tau_old + tau) dvp
+        dA`` and ``stab += (1/2 (ps_old + ps) dd + 1/2 (ts_old + ts) dv) dA`` (``dd = d_end -
+        d_start``, ``dv`` the increment's tangential relative displacement, where the normal met
+        the foundation at both ends)."""
         wt, _ = self._weights(P, geo)
         dA = wt * _norm(t)
         st["dvp"] = np.asarray(st["vp"], float) - np.asarray(state["vp"], float)
         st["energy"] = (np.asarray(state["energy"], float)
                         + (np.asarray(st["dissip"], float) - np.asarray(state["dissip"], float)) * dA)
+        tau_old = np.asarray(state["tau"], float)
+        st["fdis"] = (np.asarray(state["fdis"], float)
+                      + 0.5 * (tau_old + np.asarray(st["tau"], float)) * st["dvp"] * dA)
+        both = (d_start > -0.5 * FAR) & (d_end > -0.5 * FAR)
+        dd = np.where(both, d_end - d_start, 0.0)
+        dv = np.where(both, dv, 0.0)
+        ps, ts = np.asarray(st["ps"], float), np.asarray(st["ts"], float)
+        st["stab"] = np.asarray(state["stab"], float) + (
+            0.5 * (np.asarray(state["ps"], float) + ps) * dd
+            + 0.5 * (np.asarray(state["ts"], float) + ts) * dv) * dA
         return st
 
     def _face_x(self, u) -> np.ndarray:
@@ -454,8 +489,9 @@ class ContactGroup(Group):
     # ----------------------------------------------------------------- compute
     def _integrate(self, u_new, u_old, state, ctx, tangent, stab=False):
         """Run the law over the sub-intervals; returns the end state, D p, D tau (g, nw), P, t
-        (g, 2) of the end configuration (``_axes_t`` of u_new, reused by ``compute``) and, for
-        the stabilisation (``stab``), ``(d_start, d_end, D d_end, sum dv, D sum dv)``."""
+        (g, 2) of the end configuration (``_axes_t`` of u_new, reused by ``compute``) and
+        ``(d_start, d_end, D d_end, sum dv, D sum dv)`` (the last one None unless ``stab`` and
+        ``tangent``: the stabilisation's)."""
         xo, xn = self._face_x(u_old), self._face_x(u_new)
         dx = xn - xo
         (co, tho), (cn, thn) = self._placement(ctx, "old"), self._placement(ctx, "new")
@@ -538,8 +574,7 @@ class ContactGroup(Group):
         for key in ("p", "tau"):
             if tangent and D[key] is None:
                 D[key] = np.zeros((self.ng, self.nw))
-        extra = (d_start, d_end, Dd_end, dv_sum, Ddv_sum) if stab else None
-        return st, D, P_end, t_end, extra
+        return st, D, P_end, t_end, (d_start, d_end, Dd_end, dv_sum, Ddv_sum)
 
     def _chain(self, tan, D, Ddu, Dd_old, Ddv, lam=True):
         """Forward-mode step: derivatives of (p, tau, lam) after a sub-interval.  Inputs and
@@ -590,14 +625,13 @@ class ContactGroup(Group):
         stab = self._stabilisation(ctx)
         with np.errstate(invalid="ignore", divide="ignore"):
             st, D, P, t, extra = self._integrate(u_new, u_old, state, ctx, tangent, stab is not None)
-        st = self._increment_totals(st, state, P, t, geo)
         jac = _norm(t)
         p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
         if stab is not None:
-            p, tau = self._stabilise(stab, st, state, extra, D, P, t, geo, tangent)
+            p, tau = self._stabilise(stab, st, extra, D, tangent)
         else:
             st["ps"], st["ts"] = np.zeros(self.ng), np.zeros(self.ng)
-            st["stab"] = np.array(state["stab"], float, copy=True)
+        st = self._increment_totals(st, state, P, t, geo, extra[0], extra[1], extra[3])
         Rt = _right(t)
         vec = p[:, None] * Rt - tau[:, None] * t                      # (p e_u + tau e_v) |t|
         wt, Dwt = self._weights(P, geo)
@@ -631,22 +665,22 @@ class ContactGroup(Group):
                 K = np.concatenate([K, self._tool_tangent(vec * wt[:, None], DF, P, ctx)], axis=1)
         return GroupResult(f=f, K=K, state=st, failure=failure)
 
-    def _stabilise(self, stab, st, state, extra, D, P, t, geo, tangent):
-        """p and tau with the stabilisation's tractions on the open points near the foundation
-        (see the module doc); D p, D tau updated in place; ``st`` gets ``ps``, ``ts``, ``stab``."""
+    def _stabilise(self, stab, st, extra, D, tangent):
+        """p and tau with the stabilisation's tractions (see the module doc); D p, D tau updated
+        in place; ``st`` gets ``ps``, ``ts``."""
         kn, kt, rng = stab
         d_start, d_end, Dd_end, dv_sum, Ddv_sum = extra
-        on = ((np.asarray(st["status"]) == OPEN) & (d_end > -rng) & (d_start > -0.5 * FAR))
-        dd = np.where(on, d_end - d_start, 0.0)
-        dv = np.where(on, dv_sum, 0.0)
-        ps, ts = kn * dd, kt * dv
-        wt, _ = self._weights(P, geo)
+        wn, dwn, wt_, dwt = _stab_weights(d_end, d_start, rng)
+        dd = np.where(wn > 0.0, d_end - d_start, 0.0)
+        dv = np.where(wt_ > 0.0, dv_sum, 0.0)
+        ps, ts = kn * wn * dd, kt * wt_ * dv
         st["ps"], st["ts"] = ps, ts
-        st["stab"] = np.asarray(state["stab"], float) + (ps * dd + ts * dv) * wt * _norm(t)
         if tangent:
-            w = on.astype(float)[:, None]
-            D["p"] = D["p"] + (kn * w) * Dd_end
-            D["tau"] = D["tau"] + (kt * w) * Ddv_sum
+            a = (kn * (wn + dd * dwn))[:, None]
+            b = (kt * dv * dwt)[:, None]
+            c = (kt * wt_)[:, None]
+            D["p"] = D["p"] + a * Dd_end
+            D["tau"] = D["tau"] + (c * Ddv_sum + b * Dd_end)
         return np.asarray(st["p"], float) + ps, np.asarray(st["tau"], float) + ts
 
     def _tool_force(self, F, P, ctx) -> np.ndarray:
@@ -708,8 +742,8 @@ class ContactGroup(Group):
             self.nt, stab, nsub, float(self.law.theta), geo, tangent, state, self._frozen(ctx))
         if not reuse:
             self._start_cache = (geo, self.foundation, xo, po, d_start)
-        st["stab"] = np.asarray(state["stab"], float) + st.pop("stab_inc")
-        st = self._increment_totals(st, state, *self._axes_t(xn, geo), geo)
+        d_end, dv = st.pop("d_end"), st.pop("dv")
+        st = self._increment_totals(st, state, *self._axes_t(xn, geo), geo, d_start, d_end, dv)
         if snap:
             raise ReturnMappingError(self.law.failure_message)
         failure = None
@@ -750,7 +784,8 @@ class ContactGroup(Group):
         the energy dissipated by friction (the sum of the points' ``energy``); ``M`` the moment of
         the forces on the body about the tool's reference point, ``stored`` the energy in the
         contact springs (:meth:`ContactLaw.stored_energy` over ``dA``; NaN when the law does not
-        say) and ``stabilisation`` the energy the stabilisation has dissipated.  ``F`` and ``M``
+        say), ``friction`` the frictional dissipation and ``stabilisation`` the energy the
+        stabilisation has dissipated, both in the trapezoidal form of the energy balance.  ``F`` and ``M``
         include the stabilisation's tractions: they are the tool's reactions."""
         geo = bool(ctx.nlgeom)
         c, theta = self._placement(ctx, "new")
@@ -794,4 +829,5 @@ class ContactGroup(Group):
             vp=np.asarray(state["vp"], float), dvp=np.asarray(state["dvp"], float),
             dissip=np.asarray(state["dissip"], float),
             E=float(np.sum(np.asarray(state["energy"], float))), M=M, stored=stored,
-            stabilisation=float(np.sum(np.asarray(state.get("stab", 0.0), float))))
+            stabilisation=float(np.sum(np.asarray(state.get("stab", 0.0), float))),
+            friction=float(np.sum(np.asarray(state.get("fdis", 0.0), float))))

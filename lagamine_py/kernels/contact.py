@@ -449,7 +449,8 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
              t0, P0, At, RAt, AP0, AP1, start_needed, d_start, co, cn, tho, thn, X, nt, stab, A, B,
              C, start_o, start_t, end_o, end_t, s_tol, cos_min, lv, p_old, tau_old, lam_old,
              slip_old, vp_old, dissip_old, status_old, hold, has_hold, p_new, tau_new, lam_new,
-             slip_new, vp_new, dissip_new, status_new, ps_new, ts_new, stab_inc, outside, f, K):
+             slip_new, vp_new, dissip_new, status_new, ps_new, ts_new, d_out, dv_out, outside, f,
+             K):
     """``ContactGroup.compute`` (``_integrate`` and the forces/tangent) point by point for the
     COULOMB law against a :class:`~lagamine_py.foundation.Foundation`: the same formulas in
     the same order; derivatives known to be zero are skipped as there.  Arrays: ``xo``, ``xn``
@@ -460,7 +461,8 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
     (2,) and rotations ``tho``, ``thn`` of its reference point ``X`` (2,); ``nt`` the tool's
     DOFs (0, 2 or 3: columns and rows ``nd..`` of ``f`` and ``K``); ``stab`` (3,) the
     stabilisation ``(kn, kt, range)`` (``kn < 0``: none).  Writes the new state, the
-    stabilisation's ``ps_new``, ``ts_new``, ``stab_inc`` (g,), ``outside`` (g,)
+    stabilisation's ``ps_new``, ``ts_new``, ``d_end`` and the sum of the sub-intervals' ``dv``
+    (``d_out``, ``dv_out``: for the energy), ``outside`` (g,)
     (``Coulomb.outside_cone``), ``f`` (f, nw) and ``K`` (f, nw, nw) when ``tangent``; returns
     ``(snap-backs, degenerate faces (|t| <= jac_tol), non-finite f, p or tau)`` as counts."""
     nf, na = xo.shape[0], xo.shape[1]
@@ -681,16 +683,27 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
             # the stabilisation (ContactGroup._stabilise)
             ps = ts = 0.0
             if has_stab:
-                on = sstat == OPEN and d_end > -stab[2] and d_start[g] > -0.5 * far
-                dd = d_end - d_start[g] if on else 0.0
-                dvs = dv_sum if on else 0.0
-                ps, ts = stab[0] * dd, stab[1] * dvs
-                stab_inc[g] = (ps * dd + ts * dvs) * wt * n
-                if tangent and on:
+                rng = stab[2]
+                ok = d_end > -rng and d_start[g] > -0.5 * far
+                wn = dwn = wts = dwt = 0.0           # ContactGroup._stab_weights
+                if ok and d_end >= 0.0:
+                    wn = 1.0
+                elif ok:
+                    x = -d_end / rng
+                    wn, dwn = 1.0 - x, 1.0 / rng
+                    wts, dwt = 4.0 * x * (1.0 - x), -4.0 * (1.0 - 2.0 * x) / rng
+                dd = d_end - d_start[g] if wn > 0.0 else 0.0
+                dvs = dv_sum if wts > 0.0 else 0.0
+                ps, ts = stab[0] * wn * dd, stab[1] * wts * dvs
+                if tangent and ok:
+                    sa = stab[0] * (wn + dd * dwn)
+                    sb = stab[1] * dvs * dwt
+                    sc = stab[1] * wts
                     for J in range(nw):
-                        Dp[J] = Dp[J] + stab[0] * Dd_end[J]
-                        Dtau[J] = Dtau[J] + stab[1] * Ddv_sum[J]
+                        Dp[J] = Dp[J] + sa * Dd_end[J]
+                        Dtau[J] = Dtau[J] + (sc * Ddv_sum[J] + sb * Dd_end[J])
             ps_new[g], ts_new[g] = ps, ts
+            d_out[g], dv_out[g] = d_end, dv_sum
             sp = sp + ps
             stau = stau + ts
             # forces and tangent (ContactGroup.compute)
@@ -817,7 +830,8 @@ def contact_group(element, chain, law_vector, xo, xn, reuse, d_start, place_o, p
     ``reuse`` (else computed here and returned); ``place_o``, ``place_n`` the foundation's
     placements (dx, dy, theta) at the start and end, ``centre`` its reference point; ``nt`` the
     tool's DOFs (0, 2, 3); ``stab`` ``(kn, kt, range)`` or None; ``nsub`` the sub-intervals.
-    The new state holds ``ps``, ``ts`` and ``stab_inc`` (the stabilisation); ``flags``: counts of
+    The new state holds ``ps``, ``ts`` (the stabilisation), ``d_end`` and ``dv`` (the
+    increment's penetration at its end and tangential relative displacement); ``flags``: counts of
     (snap-backs, degenerate faces, non-finite values)."""
     calls["contact"] += 1
     N, dN, W, t0, P0, At, RAt, AP0, AP1, axisym, thickness, touch_tol, far, jac_tol = element
@@ -828,7 +842,7 @@ def contact_group(element, chain, law_vector, xo, xn, reuse, d_start, place_o, p
     nw = nd + int(nt)
     if not reuse:
         d_start = np.empty(ng)
-    out = np.empty((9, ng))
+    out = np.empty((10, ng))
     status = np.empty(ng, np.int8)
     outside = np.empty(ng, np.bool_)
     f = np.empty((nf, nw))
@@ -836,7 +850,6 @@ def contact_group(element, chain, law_vector, xo, xn, reuse, d_start, place_o, p
     hold = _NO_HOLD if frozen is None else c(np.broadcast_to(frozen, (ng,)), np.int64)
     po, pn = c(place_o, float), c(place_n, float)
     sv = np.array([-1.0, 0.0, 0.0]) if stab is None else c(stab, float)
-    out[8] = 0.0
     flags = _contact(bool(geo), bool(tangent), bool(axisym), int(nsub), float(theta),
                      float(thickness), touch_tol, far, jac_tol, xo, xn, N, dN, W, t0, P0, At,
                      RAt, AP0, AP1, not reuse, d_start, po[:2].copy(), pn[:2].copy(),
@@ -845,9 +858,9 @@ def contact_group(element, chain, law_vector, xo, xn, reuse, d_start, place_o, p
                      c(state["tau"], float), c(state["lam"], float), c(state["slip"], float),
                      c(state["vp"], float), c(state["dissip"], float), c(state["status"], np.int8),
                      hold, frozen is not None, out[0], out[1], out[2], out[3], out[4], out[5],
-                     status, out[6], out[7], out[8], outside, f, K)
+                     status, out[6], out[7], out[8], out[9], outside, f, K)
     new_state = dict(p=out[0], tau=out[1], lam=out[2], slip=out[3], vp=out[4], dissip=out[5],
-                     status=status, ps=out[6], ts=out[7], stab_inc=out[8])
+                     status=status, ps=out[6], ts=out[7], d_end=out[8], dv=out[9])
     for k, v in state.items():                # entries the law does not own: copied through
         if k not in new_state:
             new_state[k] = np.array(v, copy=True)

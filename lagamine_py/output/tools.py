@@ -11,7 +11,8 @@
 * ``energy.csv`` (writer ``ENERGY``, on every run, writing only when the run keeps the energy
   balance: a ``*CHECK, TYPE=ENERGY`` or ``*OUTPUT, WRITERS=`` naming ENERGY): one row per
   converged increment with the terms of :mod:`lagamine_py.solver.energy` (``work, elastic,
-  plastic, friction, penalty, stabilisation, balance, relative``), cumulative from t = 0.
+  plastic, friction, penalty, stabilisation, balance, relative, friction_path``), cumulative
+  from t = 0.
 
 Both are flushed after every increment and resume like the other tables
 (:class:`~lagamine_py.output.tables.CsvFiles`).
@@ -28,7 +29,7 @@ __all__ = ["ToolForcesWriter", "EnergyWriter", "TOOL_HEADER", "ENERGY_HEADER"]
 TOOL_HEADER = ("step", "increment", "time", "foundation", "ref_node", "x", "y", "U1", "U2", "UR6",
                "RF1", "RF2", "RM6")
 ENERGY_TERMS = ("work", "elastic", "plastic", "friction", "penalty", "stabilisation", "balance",
-                "relative")
+                "relative", "friction_path")
 ENERGY_HEADER = ("step", "increment", "time") + ENERGY_TERMS
 
 

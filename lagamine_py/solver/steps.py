@@ -142,6 +142,7 @@ class Controller:
         self.total_time = float(sum(float(st.period) for st in model.steps))
         self.progress = Progress(enabled=progress, total=self.total_time)
         self.last_contacts: list = []     # the contact points of the last hand-out (summary)
+        self.last_tools: dict = {}        # and the tools' states
         self.wall0 = _time.perf_counter()
         n = problem.ndof
         self.u = np.zeros(n)
@@ -228,6 +229,13 @@ class Controller:
                          f"T/P = {ratio}; {len(st)} points: {counts['open']} open, "
                          f"{counts['stick']} stick, {counts['slip']} slip"
                          + (f", {counts['none']} facing no foundation" if counts["none"] else ""))
+        for ts in self.last_tools.values():
+            if ts.ref_node is None and not np.any(ts.placement):
+                continue                    # a fixed foundation: its force is the contacts' above
+            node = f" (reference node {ts.ref_node})" if ts.ref_node is not None else ""
+            lines.append(f"tool {ts.name}{node}: force ({ts.force[0]:.6g}, {ts.force[1]:.6g}){force}, "
+                         f"moment {ts.moment:.6g}; moved by ({ts.placement[0]:.6g}, "
+                         f"{ts.placement[1]:.6g}), turned by {ts.placement[2]:.6g} rad")
         pvd = sorted(self.outdir.glob("*.pvd"))
         lines.append(f"results in {self.outdir}" + (f" (ParaView: {pvd[0]})" if pvd else ""))
         lines.append(f"wall time {_time.perf_counter() - self.wall0:.1f} s")
@@ -389,6 +397,7 @@ class Controller:
             residual_history=list(conv.history),
             loads=driving_loads(model, step, loads, t), tools=tool_states, energy=energy)
         self.last_contacts = result.contacts
+        self.last_tools = result.tools
         self._last_energy = result.energy
         log.info("  converged: step %d increment %d, time %g, %d iterations, |R|/F %.3e",
                  si + 1, inc, result.time, conv.iterations, conv.residual)

@@ -107,9 +107,13 @@ def stabilisation_context(problem, step, t: float, dt: float):
         penalties = grp.law.penalties()
         kp = float(penalties["KP"][0]) if "KP" in penalties else 0.0
         kn = stab.factor * kp * (T / dt) * fade
-        rng = stab.range if stab.range is not None else face_length(grp)
+        rng = stab.range if stab.range is not None else RANGE * face_length(grp)
         out[name] = (kn, stab.tangential * kn, float(rng))
     return out
+
+
+#: the default range of the stabilisation, times the median face length of the pair's surface
+RANGE = 0.1
 
 
 def face_length(group) -> float:
@@ -159,57 +163,69 @@ def _bodies(problem) -> list[np.ndarray]:
     return [np.flatnonzero((label == b) & used) for b in np.unique(label[used])]
 
 
-def _free_modes(problem, K, free_mask) -> list[tuple[str, str, np.ndarray]]:
-    """``(what, direction, nodes or dofs)`` of the rigid-body modes ``K`` does not restrain:
-    a mode with no prescribed component whose ``K m`` vanishes at the free DOFs."""
+def _rigid_modes(problem, free_mask) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
+    """The candidate rigid-body modes: each tool's free DOFs and each body's translations and
+    (in plane strain) rotation about its centroid, ``(owner, direction, nodes or DOFs, m)``;
+    a mode with a prescribed component is left out (a support holds it)."""
     model = problem.model
-    ndof = K.shape[0]
-    scale = float(np.abs(K.data).max(initial=0.0)) or 1.0
+    ndof = problem.ndof
     out = []
-
-    def unrestrained(m):
-        if np.any(m[~free_mask] != 0.0):
-            return False
-        r = (K @ m)[free_mask]
-        return float(np.linalg.norm(r)) <= 1e-9 * scale * float(np.linalg.norm(m))
-
     for name, dofs in problem.tools.items():
         for d, what in zip(dofs, ("x", "y", "rotation")):
             m = np.zeros(ndof)
             m[d] = 1.0
-            if unrestrained(m):
-                out.append((f"tool {name}", what, np.array([d])))
+            out.append((f"tool {name}", what, np.array([d]), m))
     for nodes in _bodies(problem):
         X = model.coords[nodes]
-        modes = []
         for i, what in ((0, "x"), (1, "y")):
             if model.axisymmetric and i == 0:
                 continue                       # a radial translation strains the hoop
             m = np.zeros(ndof)
             m[2 * nodes + i] = 1.0
-            modes.append((what, m))
+            out.append(("body", what, nodes, m))
         if not model.axisymmetric:
             m = np.zeros(ndof)
             c = X.mean(axis=0)
             m[2 * nodes] = -(X[:, 1] - c[1])
             m[2 * nodes + 1] = X[:, 0] - c[0]
-            modes.append(("rotation", m))
-        for what, m in modes:
-            if unrestrained(m):
-                out.append(("body", what, nodes))
+            out.append(("body", "rotation", nodes, m))
+    return [mode for mode in out if not np.any(mode[3][~free_mask] != 0.0)]
+
+
+def _free_modes(problem, K, free_mask) -> list[list[tuple[str, str, np.ndarray]]]:
+    """The combinations of rigid-body modes that ``K`` does not restrain: the null vectors of
+    ``K M`` at the free DOFs, ``M`` the candidate modes (:func:`_rigid_modes`, unit columns), each
+    as the list of its participating modes ``(owner, direction, nodes or DOFs)`` (a body and the
+    tool pressing it move together, say)."""
+    modes = _rigid_modes(problem, free_mask)
+    if not modes:
+        return []
+    norms = np.array([np.linalg.norm(m) for *_, m in modes])
+    M = np.column_stack([m for *_, m in modes]) / norms
+    A = (K @ M)[free_mask]
+    scale = float(np.abs(K.data).max(initial=0.0)) or 1.0
+    _, sv, Vt = np.linalg.svd(A, full_matrices=False)
+    peak = np.array([np.abs(m).max() for *_, m in modes]) / norms     # largest motion per unit
+    out = []
+    for s, v in zip(sv, Vt):
+        if s <= 1e-10 * scale:
+            amplitude = np.abs(v) * peak              # the largest displacement of each part
+            big = amplitude >= 0.1 * amplitude.max()
+            out.append([modes[i][:3] for i in np.flatnonzero(big)])
     return out
 
 
 def explain_singular(problem, data: np.ndarray, free_dofs: np.ndarray, states: list) -> str:
     """Why the tangent (CSR ``data`` of the full pattern) is singular at the free DOFs
-    ``free_dofs``: the unrestrained rigid-body modes of the tools and bodies, and when they are
-    held only by contact that has no closed point (``states``: the contact states at the start
-    of the increment), that contact is not closed yet.  "" when no rigid-body mode is free."""
+    ``free_dofs``: the rigid-body motions that nothing restrains (of tools, bodies, or a body
+    and the tool pressing it together), and when they are held only by contact that has no
+    closed point (``states``: the contact states at the start of the increment), that the
+    contact is not closed yet, with what to do.  "" when no rigid-body motion is free."""
     K = problem.pattern.matrix(np.asarray(data, float))
     free_mask = np.zeros(K.shape[0], bool)
     free_mask[np.asarray(free_dofs, np.int64)] = True
-    modes = _free_modes(problem, K, free_mask)
-    if not modes:
+    motions = _free_modes(problem, K, free_mask)
+    if not motions:
         return ""
     model = problem.model
     pairs = {k: problem.group_names[k] for k in problem.indices(CONTACT)}
@@ -218,32 +234,39 @@ def explain_singular(problem, data: np.ndarray, free_dofs: np.ndarray, states: l
         st = np.asarray(states[k]["status"])
         return int(np.sum((st == STICK) | (st == SLIP)))
 
-    parts, open_contact = [], False
-    by_owner: dict[str, list] = {}
-    for owner, what, where in modes:
-        label = owner
-        if owner == "body":
-            ids = sorted({int(e) for k in problem.indices(SOLID)
-                          for e, conn in zip(problem.groups[k].ids, problem.groups[k].conn)
-                          if np.isin(conn, where).any()})
-            label = f"the body of elements {ids[0]}..{ids[-1]}" if len(ids) > 1 else \
-                f"the body of element {ids[0]}"
-            mine = [k for k, g in ((k, problem.groups[k]) for k in pairs)
-                    if np.isin(g.face_nodes, where).any()]
-        else:
+    def label(owner, where) -> str:
+        if owner != "body":
             name = owner.split(" ", 1)[1]
-            ref = model.foundations[name].ref_node
-            label = f"tool {name} (reference node {int(model.node_ids[ref])})"
-            mine = [k for k in pairs if problem.groups[k].foundation_name == name]
-        by_owner.setdefault(label, [[], mine])[0].append(what)
-    for label, (whats, mine) in by_owner.items():
-        text = f"{label} can move freely ({', '.join(whats)})"
-        if mine:
+            return f"tool {name} (reference node {int(model.node_ids[model.foundations[name].ref_node])})"
+        ids = sorted({int(e) for k in problem.indices(SOLID)
+                      for e, conn in zip(problem.groups[k].ids, problem.groups[k].conn)
+                      if np.isin(conn, where).any()})
+        return (f"the body of elements {ids[0]}..{ids[-1]}" if len(ids) > 1
+                else f"the body of element {ids[0]}")
+
+    parts, open_contact = [], False
+    for motion in motions:
+        owners: dict[str, list[str]] = {}
+        nodes, tools = [], set()
+        for owner, what, where in motion:
+            owners.setdefault(label(owner, where), []).append(what)
+            if owner == "body":
+                nodes.append(where)
+            else:
+                tools.add(owner.split(" ", 1)[1])
+        nodes = np.concatenate(nodes) if nodes else np.zeros(0, np.int64)
+        # the pairs that hold the moving set against what does not move with it
+        holding = [k for k in pairs
+                   if (np.isin(problem.groups[k].face_nodes, nodes).any()
+                       != (problem.groups[k].foundation_name in tools))]
+        who = " with ".join(f"{name} ({', '.join(whats)})" for name, whats in owners.items())
+        text = f"{who} can move freely"
+        if holding:
             held = ", ".join(f"{pairs[k]}: {closed(k)} of {problem.groups[k].ng} points closed"
-                             for k in mine)
-            if all(closed(k) == 0 for k in mine):
+                             for k in holding)
+            if all(closed(k) == 0 for k in holding):
                 open_contact = True
-                text += f": it is held only by contact, which is not closed yet ({held})"
+                text += f": held only by contact, which is not closed yet ({held})"
             else:
                 text += f" (its contact: {held})"
         else:
