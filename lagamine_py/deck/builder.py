@@ -795,15 +795,15 @@ class _Builder(ImportMixin):
             if xc is not None or yc is not None:
                 self.centred.add(params["NAME"])
             return None, (float(xc or 0.0), float(yc or 0.0))
-        if xc is not None or yc is not None:
-            self.pb.at(blk, "give REF NODE= or XC=, YC=, not both: a tool with a reference node "
-                            "turns about it")
-            return None
         row = int(self.nodes.rows([ref])[0])
         if row < 0:
             self._missing(blk.file, blk.line, blk.keyword, "NODE", ref, (), "REF NODE: ")
             return None
-        self.ref_rows.add(row)
+        self.ref_rows.add(row)        # kept even if the foundation fails: no follow-on message
+        if xc is not None or yc is not None:
+            self.pb.at(blk, "give REF NODE= or XC=, YC=, not both: a tool with a reference node "
+                            "turns about it")
+            return None
         return row, tuple(float(v) for v in self.nodes.coords()[row])
 
     def _circle(self, blk, params, rows) -> np.ndarray | None:
@@ -1235,7 +1235,9 @@ class _Builder(ImportMixin):
                         "DOFs 1 and 2 only)")
             return False
         rot = set(self.m.rotation_nodes)
-        other = [int(r) for r in np.asarray(nodes).ravel() if int(r) not in rot]
+        # a node named REF NODE by a *FOUNDATION that failed: reported there, not again here
+        named = {int(self.row_map[r]) if self.row_map is not None else r for r in self.ref_rows}
+        other = [int(r) for r in np.asarray(nodes).ravel() if int(r) not in rot | named]
         if other:
             self.pb.add(row.file, row.line, blk.keyword,
                         f"DOF 6 (a rotation) exists only on the reference node of a tool (*FOUNDATION, "
@@ -1305,7 +1307,8 @@ class _Builder(ImportMixin):
     def _kw_change_contact_law(self, blk, params, data):
         surface, foundation, law = params["SURFACE"], params["FOUNDATION"], params["LAW"]
         if law not in self.m.contact_laws:
-            self._missing(blk.file, blk.line, blk.keyword, "CONTACT LAW", law, self.m.contact_laws, "LAW=")
+            self._missing(blk.file, blk.line, blk.keyword, "CONTACT LAW", law, self.m.contact_laws,
+                          f"LAW={law}: ")
             return
         pairs = [f"{c.surface}->{c.foundation}" for c in self.m.contacts]
         pair = f"{surface}->{foundation}"

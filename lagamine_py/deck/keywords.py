@@ -216,7 +216,7 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
             doc="the contact pair SURFACE->FOUNDATION uses the contact law LAW from this step on; its "
                 "state (p, tau, the slip lambda, the dissipation) carries over"),
     Keyword("CONTACT STABILIZATION", "step",
-            (Param("FACTOR", float, 1e-3, gt=0.0,
+            (Param("FACTOR", float, 1e-4, gt=0.0,
                    doc="damping coefficient as a fraction of KP times the step time"),
              Param("TANGENTIAL", float, 1.0, bounds=(0.0, None),
                    doc="tangential damping relative to the normal one"),
