@@ -225,6 +225,20 @@ def test_roll_torque_and_quadratic_newton(tmp_path):
     assert abs(float(roll["RM6"])) == pytest.approx(abs(T) * 20.0, rel=5e-3)
     assert float(last(tmp_path / "reactions.csv", nset="1000")["RM6"]) == pytest.approx(
         float(roll["RM6"]), rel=1e-9)
+    # the outputs of a model with a rotation DOF: the body's VTU (the reference node a point of
+    # it, with no cell), the tool's VTU displaced by its rigid motion, compare against itself
+    import meshio
+    from lagamine_py.compare import compare_dirs
+    body = res.body_files()[-1][1]
+    model = load_deck(DATA / "roll_turn.dat")
+    assert len(meshio.read(body).points) == len(model.node_ids)
+    tool = [p for _, name, p in res.blocks() if name == "foundation ROLL"][-1]
+    grid = meshio.read(tool)
+    X = grid.points[:, :2]
+    place = [float(roll[k]) for k in ("U1", "U2", "UR6")]
+    np.testing.assert_allclose(grid.point_data["displacement"][:, :2],
+                               placed(X, (0.0, 20.0), place) - X, atol=1e-12)
+    assert compare_dirs(tmp_path, tmp_path).ok
     turning = [r for r in cap.results if r.step == 2 and len(r.residual_history) >= 4]
     assert turning, [r.residual_history for r in cap.results]
     for r in turning:
