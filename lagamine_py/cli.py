@@ -11,6 +11,8 @@ from pathlib import Path
 
 from .core.exits import EXIT_DECK, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER
 
+MAX_DECK_ERRORS = 50        # deck errors printed; the others are counted
+
 
 def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
@@ -120,7 +122,8 @@ def _load(deck: Path, params: list[str] = ()):
         print(f"lagamine-py: {exc}", file=sys.stderr)
         return None
     except DeckError as exc:
-        print(f"lagamine-py: the deck has errors; nothing was run:\n{exc}", file=sys.stderr)
+        print(f"lagamine-py: the deck has errors; nothing was run:\n{exc.report(MAX_DECK_ERRORS)}",
+              file=sys.stderr)
         return None
 
 

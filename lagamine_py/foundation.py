@@ -339,7 +339,8 @@ class Foundation:
         b = w0 * self.B[:, 0] + w1 * self.B[:, 1]
         rel = self.A + c                                          # (j, 2)
         c0 = w0 * (rel[:, 0] - P[:, 0, None]) + w1 * (rel[:, 1] - P[:, 1, None])
-        with np.errstate(divide="ignore", invalid="ignore"):
+        # an arc that is nearly straight (a -> 0) sends its far root to +-inf: dropped below
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             disc = b * b - 4 * a * c0
             sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
             # numerically stable pair; when a -> 0, r2 -> -c0/b (the linear case) and r1 -> inf

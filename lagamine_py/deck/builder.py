@@ -606,6 +606,10 @@ class _Builder:
         if self._defined_twice(blk, "foundation", name, self.m.foundations):
             return
         pts = np.array([vals for _row, vals in rows], float)
+        if not _sane_coordinates(pts):
+            self.pb.at(blk, f"foundation {name}: a coordinate of magnitude {np.abs(pts).max():.3g} "
+                            f"exceeds {COORD_MAX:g}: {_COORD_WHY}")
+            return
         if len(pts) < 3 or len(pts) % 2 == 0:
             self.pb.at(blk, f"a foundation needs an odd number >= 3 of points (arcs through points 1-2-3, "
                             f"3-4-5, ...), got {len(pts)}")
@@ -676,6 +680,14 @@ class _Builder:
             if len(bare) and not self.solid_failed:
                 self.pb.at(grp.block, f"element{'s' * (len(bare) > 1)} {_few(bare)} "
                                       f"{'have' if len(bare) > 1 else 'has'} no *SOLID (no material)")
+        big = np.flatnonzero(~np.all(np.abs(m.coords) <= COORD_MAX, axis=1))
+        for row in big[:5]:
+            f, ln = self.nodes.where(int(row))
+            self.pb.add(f, ln, "NODE", f"node {int(m.node_ids[row])}: a coordinate of magnitude "
+                                       f"{np.abs(m.coords[row]).max():.3g} exceeds {COORD_MAX:g}: "
+                                       f"{_COORD_WHY}")
+        if len(big):
+            return
         self._axisymmetry()
         self._assemble_blocks()
         if not self.pb:
@@ -876,6 +888,15 @@ class _Builder:
                               if isinstance(exc, KeyError) else exc, pairs)
             return
         self.step.controls.update({k: v for k, v in values.items() if k.upper() in given})
+
+
+#: largest coordinate magnitude: products of two coordinates (areas, Jacobians) must stay finite
+COORD_MAX = 1e150
+_COORD_WHY = "products of coordinates (areas, Jacobians) would overflow; choose another length unit"
+
+
+def _sane_coordinates(x) -> bool:
+    return bool(np.all(np.abs(np.asarray(x, float)) <= COORD_MAX))
 
 
 def _union(old: np.ndarray | None, new) -> np.ndarray:
