@@ -55,6 +55,16 @@ def parse_load_text(text: str) -> dict[str, float]:
     return {k: v for k, v in out.items() if k}
 
 
+def _ends_a_line(path) -> bool:
+    """Whether the file is empty or ends with a newline."""
+    with open(path, "rb") as fh:
+        fh.seek(0, 2)
+        if fh.tell() == 0:
+            return True
+        fh.seek(-1, 2)
+        return fh.read(1) == b"\n"
+
+
 def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
@@ -80,7 +90,11 @@ class StatusWriter(Writer):
         deck = self.model.name or "run"
         append = self.append
         self._sta_files = CsvFiles(self.outdir, {"sta": (f"{deck}.sta", STA_HEADER)}, append)
-        self._log_fh = open(self.outdir / f"{deck}.log", "a" if append else "w")
+        log_path = self.outdir / f"{deck}.log"
+        torn = append and log_path.exists() and not _ends_a_line(log_path)
+        self._log_fh = open(log_path, "a" if append else "w")
+        if torn:                        # a line cut by a kill: the resumed log starts afresh
+            self._log_fh.write("\n")
         self.step_name = ""
         self._attach_handler()
         heading = self.model.heading

@@ -247,7 +247,7 @@ class Controller:
             self._commit(conv, loads, free)
             t = stepper.accept(conv.iterations)
             self._hand_out(si, step, loads, stepper.inc, t, stepper.attempt, conv,
-                           stepper.cutbacks, stepper.period)
+                           stepper.cutbacks, stepper.period, stepper.finished)
             self._save_restart(si, loads, stepper, last)
         self.reached = loads.reached(self.model)
         self.time_offset += stepper.period
@@ -347,7 +347,7 @@ class Controller:
         self.total_increments += 1
 
     # -- output ----------------------------------------------------------------------------
-    def _hand_out(self, si, step, loads, inc, t, dt, conv, cutbacks, T) -> None:
+    def _hand_out(self, si, step, loads, inc, t, dt, conv, cutbacks, T, step_end=False) -> None:
         model = self.model
         u2 = self.u.reshape(-1, 2)
         reaction2 = self.reaction.reshape(-1, 2)
@@ -364,7 +364,7 @@ class Controller:
             contacts=self._contacts(u2, conv.ctx),
             foundations={name: np.asarray(spec.points, float) + motions[name]
                          for name, spec in model.foundations.items()},
-            write_fields=(inc % freq == 0) or t >= T,
+            write_fields=(inc % freq == 0) or t >= T, step_end=bool(step_end),
             residual_history=list(conv.history),
             loads=driving_loads(model, step, loads, t))
         self.last_contacts = result.contacts
