@@ -6,11 +6,14 @@ Used by ``compare``, ``plot``, the sweep and the tests; it reads only what the o
 from __future__ import annotations
 
 import csv
+import io
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from .core.outdir import run_name
 
 TEXT_COLUMNS = {"status", "nset", "contact", "step_name", "failed", "reason", "load"}
 
@@ -69,35 +72,52 @@ def read_vtu(path: Path) -> dict[str, np.ndarray]:
 
 @dataclass
 class RunResults:
+    """The files of the run in ``outdir``.  The deck-named ones (``<deck>.sta``, ``<deck>.pvd``)
+    are those of the deck the directory's record names (:func:`lagamine_py.core.outdir.run_name`),
+    never "the first that sorts": a directory holding the files of several decks and no record
+    raises :class:`~lagamine_py.core.outdir.ResultsOfAnotherDeck`."""
     outdir: Path
 
     def __post_init__(self):
         self.outdir = Path(self.outdir)
 
+    @property
+    def name(self) -> str | None:
+        """The deck name of the run (None when the directory holds no run)."""
+        return run_name(self.outdir)
+
+    def own(self, suffix: str) -> Path | None:
+        """``OUT/<deck><suffix>`` of the run (``.sta``, ``.pvd``, ``.log``), None if absent."""
+        name = self.name
+        path = self.outdir / f"{name}{suffix}" if name else None
+        return path if path is not None and path.exists() else None
+
     def table(self, name: str) -> dict[str, np.ndarray]:
         path = self.outdir / name
         return read_table(path) if path.exists() else {}
 
+    def sta(self) -> dict[str, np.ndarray]:
+        """The run's status table ``<deck>.sta`` ({} when there is none)."""
+        path = self.own(".sta")
+        return read_table(path) if path is not None else {}
+
+    def _datasets(self):
+        path = self.own(".pvd")
+        return [] if path is None else list(ET.parse(path).getroot().iter("DataSet"))
+
     def pvd(self) -> list[tuple[float, int, Path]]:
         """(time, part, file) of every dataset listed in the PVD index."""
-        pvds = sorted(self.outdir.glob("*.pvd"))
-        if not pvds:
-            return []
-        root = ET.parse(pvds[0]).getroot()
         return [(float(d.get("timestep")), int(d.get("part", 0)), self.outdir / d.get("file"))
-                for d in root.iter("DataSet")]
+                for d in self._datasets()]
 
     def blocks(self) -> list[tuple[float, str, Path]]:
         """(time, block name, file) of every dataset of the PVD index: ``body``, ``contact
         <pair>``, ``foundation <name>`` (an index written before blocks had names: part 0
         ``body``, 1 ``contact``, 2 ``foundation``)."""
-        pvds = sorted(self.outdir.glob("*.pvd"))
-        if not pvds:
-            return []
         old = {0: "body", 1: "contact", 2: "foundation"}
         return [(float(d.get("timestep")), d.get("name") or old.get(int(d.get("part", 0)), ""),
                  self.outdir / d.get("file"))
-                for d in ET.parse(pvds[0]).getroot().iter("DataSet")]
+                for d in self._datasets()]
 
     def body_files(self) -> list[tuple[float, Path]]:
         return [(t, f) for t, name, f in self.blocks() if name == "body"]

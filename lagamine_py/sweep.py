@@ -51,7 +51,8 @@ from typing import Any, Callable, Iterable
 
 from .checks import check_columns, evaluate_checks
 from .core.exits import EXIT_DECK, EXIT_OK, EXIT_OTHER
-from .results import read_table
+from .core.outdir import OutputDirError
+from .results import RunResults
 
 __all__ = ["sweep_main", "run_sweep", "parse_sets", "grid", "point_dirname", "run_point",
            "point_task", "run_stats", "load_point_checks", "SweepError", "PointDeckError",
@@ -175,11 +176,13 @@ def _reason(pointdir: Path, status: int) -> str:
 
 def run_stats(pointdir: Path) -> dict[str, Any]:
     """Newton iterations (all attempts), converged increments and failed attempts, from the
-    ``.sta`` file of a run directory (zeros when there is none)."""
-    stas = sorted(Path(pointdir).glob("*.sta"))
-    if not stas:
+    run's ``<deck>.sta`` in a run directory (zeros when there is none)."""
+    try:
+        sta = RunResults(Path(pointdir)).sta()
+    except OutputDirError:          # the files of several decks and no record: none is the run's
+        sta = {}
+    if not sta:
         return {"newton_iterations": 0, "increments": 0, "failed_attempts": 0}
-    sta = read_table(stas[0])
     n = len(sta.get("increment", ()))
     failed = [str(f).strip().lower() == "yes" for f in sta.get("failed", ["no"] * n)]
     iters = sta.get("iterations", [])
