@@ -31,23 +31,49 @@ def copen_gap(table: dict[str, np.ndarray]) -> np.ndarray:
     return gap if COPEN_COLUMNS[0] in table else -gap
 
 
-def read_table(path: Path) -> dict[str, np.ndarray]:
-    """A CSV with a header row -> {column: array}; numeric columns as float (int for ids)."""
-    with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
+def read_table(path: Path, problems: list[str] | None = None) -> dict[str, np.ndarray]:
+    """A CSV with a header row -> {column: array}; numeric columns as float (int for ids).
+
+    ``problems``: a list to collect what is wrong with the file, line by line (NUL bytes, a
+    last line cut short, rows whose cell count differs from the header's, text or an empty
+    cell in a numeric column, which then reads as NaN) -- a reader that must not trust the
+    file (``compare``).  Without it, the file is read as best it can: NUL bytes dropped, short
+    rows padded, a column holding text kept as text."""
+    raw = Path(path).read_bytes()
+    text = raw.decode("utf-8", errors="replace")
+    note = problems.append if problems is not None else (lambda _msg: None)
+    if "\0" in text:
+        note(f"NUL bytes at line {text.count(chr(10), 0, text.index(chr(0))) + 1}")
+        text = text.replace("\0", "")
+    if text and not text.endswith("\n"):
+        note(f"the file ends in the middle of line {text.count(chr(10)) + 1} (cut short)")
+    rows = list(csv.reader(io.StringIO(text, newline="")))
     if not rows:
         return {}
     header, body = rows[0], rows[1:]
+    for i, r in enumerate(body):
+        if len(r) != len(header):
+            note(f"line {i + 2} has {len(r)} cells where the header has {len(header)} "
+                 f"(a torn or cut row)")
     cols = {}
     for k, name in enumerate(header):
         values = [r[k] if k < len(r) else "" for r in body]
         if name in TEXT_COLUMNS:
             cols[name] = np.array(values, dtype=object)
-        else:
-            try:
-                cols[name] = np.array([float(v) for v in values])
-            except ValueError:
+            continue
+        try:
+            cols[name] = np.array([float(v) for v in values])
+        except ValueError:
+            if problems is None:
                 cols[name] = np.array(values, dtype=object)
+                continue
+            numbers = np.full(len(values), np.nan)
+            for i, v in enumerate(values):
+                try:
+                    numbers[i] = float(v)
+                except ValueError:
+                    note(f"line {i + 2}, column {name}: {v!r} is not a number")
+            cols[name] = numbers
     return cols
 
 
