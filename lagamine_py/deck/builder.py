@@ -695,7 +695,10 @@ class _Builder:
 
     def _foundation_sides(self) -> None:
         """Each foundation must have its contact bodies on its left (the direction of travel of
-        its points): a body on its right means the points were written in the wrong order."""
+        its points): a body on its right means the points were written in the wrong order.
+        Faces touching the chain are judged by their normals, faces apart by the side they
+        stand on (which they approach from); when every face lies beyond the chain's ends (a
+        body that slides onto the tool later), against the end half-lines that continue it."""
         for cs in self.m.contacts:
             spec = self.m.foundations.get(cs.foundation)
             if spec is None:
@@ -704,7 +707,10 @@ class _Builder:
             x = self.m.coords[rows]                                    # (f, a, 2)
             mid = x[:, 2] if rows.shape[1] == 3 else 0.5 * (x[:, 0] + x[:, 1])
             normal = right_normal(x[:, 1] - x[:, 0])                  # outward: body on the left
-            side = Foundation(spec.points, spec.name).side(mid, normal)
+            chain = Foundation(spec.points, spec.name)
+            side = chain.side(mid, normal)
+            if not side.any():
+                side = chain.side(mid, normal, extend=True)
             if (side < 0).sum() > (side > 0).sum():
                 self.pb.at(cs.where, f"the bodies of surface {cs.surface} lie on the right of "
                                      f"foundation {spec.name} (at {int((side < 0).sum())} of "
@@ -722,7 +728,7 @@ class _Builder:
         self.m.axisymmetric = bool(kinds) and list(kinds)[0]
         if self.m.axisymmetric and len(self.m.coords):
             r = self.m.coords[:, 0]
-            tol = 1e-9 * max(np.ptp(self.m.coords), 1.0)
+            tol = 1e-9 * float(np.abs(self.m.coords).max())       # relative: any length unit
             used = np.unique(np.concatenate([g.conn().ravel() for g in self.groups] or [[]]).astype(int))
             neg = used[r[used] < -tol]
             for row in neg[:5]:

@@ -410,10 +410,13 @@ class Controller:
         start, predicted = first_iterate(self.u, last, dt, controls["EXTRAPOLATION"], ctx)
         watched = {k: problem.group_names[k] for k in problem.indices(CONTACT)}
         log.info("  increment at step time %g, dt %g", t_new, dt)
-        conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
-                               settings, floor=FLOOR_FRACTION * self.force_ref, u_start=start,
-                               predicted=predicted,
-                               observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+        # an overflow becomes inf or NaN, which Newton reports as a typed failure (NotANumber:
+        # the increment is cut back), not a warning on the terminal
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
+                                   settings, floor=FLOOR_FRACTION * self.force_ref,
+                                   u_start=start, predicted=predicted,
+                                   observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
         conv.f_ext, conv.ctx = f_ext, ctx
         return conv
 
@@ -485,7 +488,10 @@ class Controller:
 
     def _failure_text(self, exc) -> str:
         if isinstance(exc, SingularMatrixError):
-            return exc.describe(self.model.node_ids)
+            text = exc.describe(self.model.node_ids)
+            if exc.ill_conditioned and self.problem.warnings:     # the penalties' advice says why
+                text += "; " + "; ".join(self.problem.warnings)
+            return text
         return f"{exc.reason}: {exc}"
 
     def _report_failure(self, si, step, inc, t, dt, cutbacks, exc, reason) -> None:
