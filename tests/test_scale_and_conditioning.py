@@ -112,3 +112,19 @@ def test_values_near_the_float_range_stop_the_run_with_a_reason(tmp_path, capsys
     err = capsys.readouterr().err
     assert "non-finite tangent stiffness" in err and "unrestrained" not in err
     assert not [w for w in caught if issubclass(w.category, RuntimeWarning)]
+
+
+def test_a_residual_that_blew_up_is_not_written_as_nan(tmp_path):
+    """An imposed displacement of -1e300 (found by tools/fuzz_run.py): every attempt ends in a
+    NaN residual; the run stops with exit 3 and the .sta rows of its failed attempts say "NaN"
+    as the reason, with an empty residual -- no NaN in any output table."""
+    deck = tmp_path / "punch.dat"
+    text = (DECKS / "flat_punch.dat").read_text()
+    assert text.count("BLOCK_LEFT, 1, 1, 0") == 1
+    deck.write_text(text.replace("BLOCK_LEFT, 1, 1, 0", "BLOCK_LEFT, 1, 1, -1e300"))
+    assert main(["run", str(deck), "-o", str(tmp_path / "out"), "-q"]) == 3
+    sta = read_table(tmp_path / "out" / "punch.sta")
+    assert list(sta["failed"]) == ["yes"] * len(sta["failed"]) and set(sta["reason"]) == {"NaN"}
+    assert set(sta["residual"]) == {""}
+    for path in (tmp_path / "out").glob("*.csv"):
+        assert "nan" not in path.read_text().lower(), path.name

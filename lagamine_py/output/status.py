@@ -5,7 +5,8 @@
     step,step_name,increment,time,dt,iterations,residual,cutbacks,failed,reason,load
 
 one row per converged increment (``failed`` = ``no``) and one per failed attempt
-(``failed`` = ``yes``, ``reason`` says why; ``time`` and ``dt`` are those attempted), in the
+(``failed`` = ``yes``, ``reason`` says why; ``time`` and ``dt`` are those attempted;
+``residual`` empty when the attempt's last residual is not finite), in the
 order they happened, flushed each time: a glance at the tail tells how a run is going.
 ``load``: the loads the step drives, reached at that increment
 (:func:`lagamine_py.solver.loads.driving_loads`), as ``label=value`` items separated by ``; ``
@@ -22,6 +23,7 @@ after the first resumed (step, increment) are dropped (see :mod:`lagamine_py.out
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from datetime import datetime, timezone
 
@@ -146,7 +148,9 @@ class StatusWriter(Writer):
         """One failed attempt: a .sta row whose ``time`` is the end time the attempt aimed at
         (``time + dt``, comparable with the converged rows) and a log line with the message."""
         history = list(a.residual_history)
-        residual = history[-1] if history else None
+        # a residual that blew up to inf or NaN is left empty (the reason says "NaN"): tables
+        # hold no NaN for readers to trip on; the log keeps the whole history
+        residual = history[-1] if history and math.isfinite(history[-1]) else None
         self._sta_row(a.step, a.increment,
                       [a.step, a.step_name or self.step_name, a.increment, _g(a.time + a.dt),
                        _g(a.dt), a.iterations, _g(residual), a.cutbacks, "yes",
