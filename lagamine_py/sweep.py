@@ -3,7 +3,7 @@
 Runs a deck over the product grid of ``*PARAMETER`` values, one run directory per point
 (``DIR/<name1>=<v1>_<name2>=<v2>/``), each point a separate process::
 
-    python -m lagamine_py run DECK -o POINTDIR -q --param NAME=VALUE ...
+    python -m lagamine_py run DECK -o POINTDIR -q --overwrite --param NAME=VALUE ...
 
 Where the points run:
 
@@ -137,8 +137,8 @@ def run_point(deck: Path, params: dict[str, str], pointdir: Path, *,
     """Run one point as a subprocess and wait for it.
 
     ``command`` (default ``[python, -m, lagamine_py, run]``) is followed by
-    ``DECK -o POINTDIR -q --param NAME=VALUE ...``; its output goes to ``POINTDIR/run.stdout``
-    and ``run.stderr``.  Returns ``status`` (exit code; minus the signal number if killed),
+    ``DECK -o POINTDIR -q --overwrite --param NAME=VALUE ...``; its output goes to
+    ``POINTDIR/run.stdout`` and ``run.stderr``.  Returns ``status`` (exit code; minus the signal number if killed),
     ``reason`` (see :func:`_reason`) and ``cpu_s`` (user + system time of that child alone, from
     ``os.wait4``, so concurrent runs in one worker do not mix).
     """
