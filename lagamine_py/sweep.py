@@ -246,10 +246,14 @@ def _last_line(path: Path) -> str:
 def _reason(pointdir: Path, status: int) -> str:
     """Why the run stopped: the last line of its stderr (``run`` prints its closing message there
     when it fails, a crash its exception), else of its stdout (the closing message of a run that
-    finished), else of its log."""
+    finished), else of the run's own log."""
     if status < 0:
         return f"killed by signal {signal.Signals(-status).name}"
-    for path in (pointdir / "run.stderr", pointdir / "run.stdout", *sorted(pointdir.glob("*.log"))):
+    try:
+        log = RunResults(pointdir).own(".log")
+    except OutputDirError:                  # the logs of several decks: none is the run's
+        log = None
+    for path in (pointdir / "run.stderr", pointdir / "run.stdout", *([log] if log else [])):
         line = _last_line(path)
         if line:
             return line
