@@ -168,6 +168,8 @@ def _cmd_check(args) -> int:
     model = _load(args.deck, args.param)
     if model is None:
         return EXIT_DECK
+    for notice in model.notices:           # a run logs them as warnings
+        print(f"lagamine-py: notice: {notice}", file=sys.stderr)
     print(f"{args.deck}: OK ({len(model.node_ids)} nodes, "
           f"{sum(len(b.ids) for b in model.blocks)} elements, {len(model.steps)} steps)")
     return EXIT_OK
@@ -175,19 +177,29 @@ def _cmd_check(args) -> int:
 
 @contextmanager
 def _advice_on_stderr():
-    """Model advice (lagamine_py.advice warnings, e.g. a penalty far from 20-100 E/h) on stderr
-    while the block runs (it also goes to the run's .log file).  The handler goes at the end:
-    left behind, a later run in the same process would print the advice twice, or to a stream
-    closed since."""
+    """Model advice on stderr while the block runs, as ``check`` prints it: the deck builder's
+    notices (INFO) and warnings such as a penalty far from 20-100 E/h; they also go to the
+    run's .log file.  The handler goes at the end: left behind, a later run in the same process
+    would print the advice twice, or to a stream closed since."""
     import logging
     handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter("lagamine-py: warning: %(message)s"))
-    logger = logging.getLogger("lagamine_py.advice")
-    logger.addHandler(handler)
+    handler.setFormatter(_AdviceFormatter())
+    log = logging.getLogger("lagamine_py.advice")
+    level = log.level
+    log.addHandler(handler)
+    log.setLevel(logging.INFO)
     try:
         yield
     finally:
-        logger.removeHandler(handler)
+        log.removeHandler(handler)
+        log.setLevel(level)
+
+
+class _AdviceFormatter:
+    """``lagamine-py: notice: ...`` for INFO records, ``lagamine-py: warning: ...`` above."""
+    def format(self, record) -> str:
+        kind = "notice" if record.levelno < 30 else "warning"
+        return f"lagamine-py: {kind}: {record.getMessage()}"
 
 
 def _cmd_run(args) -> int:

@@ -234,6 +234,9 @@ class Model:
     checks: list[dict[str, Any]] = field(default_factory=list)      # *CHECK requests
     units: tuple[str, ...] = ()           # *UNITS: names of the length, force, stress units
     source: DeckSource | None = None      # the deck it was read from (None: built by a script)
+    #: what the deck builder changed or left out without it being an error ("file:line: *KW:
+    #: text"): clockwise elements renumbered, nodes used by no element, keywords skipped ...
+    notices: list[str] = field(default_factory=list)
 
     @property
     def ndof(self) -> int:

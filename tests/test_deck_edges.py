@@ -153,3 +153,14 @@ def test_the_digest_follows_the_expanded_text(tmp_path):
     assert deck_digest(b / "deck.dat") != model.source.digest
     assert deck_digest(a / "deck.dat", {"PHI": "0.4"}) != model.source.digest
     assert load_deck(a / "deck.dat", {"PHI": "0.4"}).source.parameters == {"PHI": "0.4"}
+
+
+def test_the_digest_covers_imported_meshes(tmp_path):
+    """A mesh file read by *IMPORT is part of the model: editing it changes the digest."""
+    mesh = tmp_path / "mesh.inp"
+    mesh.write_text("*NODE\n1, 0, 0\n2, 1, 0\n3, 1, 1\n4, 0, 1\n*ELEMENT, TYPE=CPE4, ELSET=E\n1, 1, 2, 3, 4\n")
+    deck = tmp_path / "deck.dat"
+    deck.write_text("*IMPORT, INPUT=mesh.inp\n*MATERIAL, NAME=M, LAW=ELASTIC\nE=100, NU=0.3\n")
+    before = deck_digest(deck)
+    mesh.write_text(mesh.read_text().replace("3, 1, 1", "3, 1, 1.5"))
+    assert deck_digest(deck) != before

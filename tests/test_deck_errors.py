@@ -101,7 +101,7 @@ CASES = [
      ["unknown material law ELASTC", "did you mean ELASTIC?"]),
     ("unknown law parameter", edit("E=100, NU=0.3", "E=100, NUU=0.3"), "E=100, NUU=0.3", "MATERIAL",
      ["unknown parameter NUU", "did you mean NU?"]),
-    ("inverted element", edit("1, 1, 2, 3, 4", "1, 1, 4, 3, 2"), "1, 1, 4, 3, 2", "ELEMENT",
+    ("inverted element", edit("1, 1, 2, 3, 4", "1, 1, 2, 4, 3"), "1, 1, 2, 4, 3", "ELEMENT",
      ["element 1 is inverted or degenerate", "counter-clockwise"]),
     ("degenerate element", edit("3, 1, 1", "3, 1, 0"), "1, 1, 2, 3, 4", "ELEMENT",
      ["element 1 is inverted or degenerate"]),
@@ -207,23 +207,34 @@ def test_recursive_include_through_another_file(tmp_path):
     assert p.file.endswith("b.inp") and p.line == 1 and "a.inp includes itself" in p.message
 
 
-def test_many_inverted_elements_are_named_by_id(tmp_path):
-    # a 3 x 1 row of squares; elements 11 and 13 are given clockwise
-    nodes = "".join(f"{i + 1}, {i % 4}, {i // 4}\n" for i in range(8))
-    elems = "11, 1, 5, 6, 2\n12, 2, 3, 7, 6\n13, 3, 7, 8, 4\n"
+def test_clockwise_elements_are_renumbered_with_a_notice_and_inverted_ones_named(tmp_path):
+    # a 4 x 1 row of squares; elements 11 and 13 are given clockwise, 14 crossed (a bow tie)
+    nodes = "".join(f"{i + 1}, {i % 5}, {i // 5}\n" for i in range(10))
+    elems = "11, 1, 6, 7, 2\n12, 2, 3, 8, 7\n13, 3, 8, 9, 4\n14, 4, 5, 9, 10\n"
     text = f"*NODE\n{nodes}*ELEMENT, TYPE=Q4PE, ELSET=E\n{elems}*MATERIAL" + BASE.split("\n*MATERIAL", 1)[1]
     deck = tmp_path / "inv.dat"
     deck.write_text(text)
     with pytest.raises(DeckError) as info:
         load_deck(deck)
     bad = {p.message.split()[1] for p in info.value.problems if "inverted" in p.message}
-    assert bad == {"11", "13"}
-    # the independent check: the shoelace area of the corners is negative exactly for those
-    xy = {i + 1: (i % 4, i // 4) for i in range(8)}
-    for eid, conn in ((11, (1, 5, 6, 2)), (12, (2, 3, 7, 6)), (13, (3, 7, 8, 4))):
+    assert bad == {"14"}
+    # the independent check: the shoelace area of the corners is negative exactly for 11 and 13
+    xy = {i + 1: (i % 5, i // 5) for i in range(10)}
+    areas = {}
+    for eid, conn in ((11, (1, 6, 7, 2)), (12, (2, 3, 8, 7)), (13, (3, 8, 9, 4))):
         x, y = np.array([xy[n] for n in conn], float).T
-        area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
-        assert (area < 0) == (str(eid) in bad)
+        areas[eid] = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    assert areas[11] < 0 and areas[13] < 0 and areas[12] > 0
+    # without the bow tie the deck loads: 11 and 13 renumbered counter-clockwise, said in a notice
+    deck.write_text(text.replace("14, 4, 5, 9, 10\n", "14, 4, 5, 10, 9\n"))
+    m = load_deck(deck)
+    (notice,) = [n for n in m.notices if "renumbered" in n]
+    assert notice.startswith(f"{deck}:{text.splitlines().index('11, 1, 6, 7, 2') + 1}: *ELEMENT: 2 elements")
+    assert notice.endswith(": 11, 13")
+    ids = list(m.blocks[0].ids)
+    for k, eid in enumerate(ids):
+        x, y = m.coords[m.blocks[0].conn[k]].T
+        assert 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) == pytest.approx(1.0)
 
 
 def test_cli_check_exits_2_on_a_bad_deck(tmp_path, capsys):
@@ -258,3 +269,40 @@ def test_deck_error_survives_pickling(tmp_path):
         load_deck(deck)
     again = pickle.loads(pickle.dumps(info.value))
     assert again.problems == info.value.problems and str(again) == str(info.value)
+
+
+def test_nodes_used_by_no_element_are_left_out_and_the_deck_runs(tmp_path):
+    """Before, a node of no element made the stiffness singular at run time (exit 3) though
+    check passed; now it is left out of the model with a notice, and the deck runs."""
+    text = "*NODE\n99, 5, 5\n" + BASE.replace("*BOUNDARY\n1, 1, 2\n", "*BOUNDARY\n1, 1, 2\n2, 2, 2\n")
+    deck = tmp_path / "d.dat"
+    deck.write_text(text)
+    m = load_deck(deck)
+    assert 99 not in m.node_ids and len(m.node_ids) == 4
+    assert m.notices == [f"{deck}:2: *NODE: 1 node used by no element is left out of the model (no "
+                         f"stiffness): 99"]
+    assert main(["run", str(deck), "-o", str(tmp_path / "out"), "-q"]) == 0
+    # naming it in a step is an error where it is named
+    deck.write_text(text.replace("2, 2, 2\n", "2, 2, 2\n99, 1, 2\n"))
+    with pytest.raises(DeckError) as info:
+        load_deck(deck)
+    (p,) = info.value.problems
+    assert (p.line, p.keyword) == (text.splitlines().index("2, 2, 2") + 2, "BOUNDARY")
+    assert "node 99 is used by no element" in p.message
+
+
+def test_nodes_at_the_same_place_are_pointed_out(tmp_path):
+    """Two blocks meshed side by side by *MESH share the places of their common side but not
+    its nodes: a notice names them (the mesh is not joined there)."""
+    deck = tmp_path / "d.dat"
+    deck.write_text("*MESH, NAME=A, TYPE=Q4PE, LX=1, LY=1, NX=1, NY=2\n"
+                    "*MESH, NAME=B, TYPE=Q4PE, X0=1, LX=1, LY=1, NX=1, NY=2\n"
+                    "*ELSET, ELSET=ALL\nA, B\n*MATERIAL, NAME=M, LAW=ELASTIC\nE=1, NU=0.3\n"
+                    "*SOLID, ELSET=ALL, MATERIAL=M\n*STEP\n*STATIC\n1, 1\n*END STEP\n")
+    m = load_deck(deck)
+    (notice,) = m.notices
+    assert notice.startswith(f"{deck}:1: *NODE: 3 places of the mesh hold more than one node")
+    # the independent count: the right side of A (x = 1) has 3 nodes, as has the left side of B
+    at_one = np.flatnonzero(np.isclose(m.coords[:, 0], 1.0))
+    assert len(at_one) == 6
+    assert "2 and 7 at (1, 0)" in notice

@@ -8,7 +8,7 @@ Fenced blocks are run according to their language tag:
 * ``ini``: an excerpt of a real ``setup.cfg`` -- every line of it must stand in the file its
   page shows (``tests/plugin_pkg/setup.cfg`` for the plugin pages);
 * ``console``: ``$ command`` lines run, and every output line shown must appear in what the
-  command printed;
+  command printed (on either stream, as a terminal shows them);
 * ``sh`` or untagged: one command a line (``# comments`` allowed).  ``lagamine-py`` commands run
   for real; ``python tools/<script> ...`` commands (studies and benchmarks that take minutes to
   hours) are checked against the script's ``--help``: the script exists and takes every option
@@ -50,11 +50,11 @@ def cases():
 
 @pytest.fixture(scope="module")
 def scratch(tmp_path_factory):
-    """A directory where the repository's decks and tools are visible, for commands to run in,
+    """A directory where the repository's decks, tools and docs are visible, for commands to run in,
     with the example plugin package of docs/plugins.md (tests/plugin_pkg) installed for them
     (into a target directory on PYTHONPATH: the test environment is left as it was)."""
     d = tmp_path_factory.mktemp("docs")
-    for name in ("decks", "tools", "tests"):
+    for name in ("decks", "tools", "tests", "docs"):
         (d / name).symlink_to(ROOT / name)
     subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
                     "--target", str(d / "site"), str(ROOT / "tests" / "plugin_pkg")], check=True)
@@ -138,7 +138,7 @@ def test_code_block_runs(page, lang, code, line, scratch):
                     out = _run(command, scratch)
                     assert out.returncode == 0, f"{where}: {command}: {out.stderr}"
                     for want in expected:
-                        assert want.strip() in out.stdout, f"{where}: {command}: no {want!r}"
+                        assert want.strip() in out.stdout + out.stderr, f"{where}: {command}: no {want!r}"
                 command, expected = raw[1:].strip(), []
             elif raw.strip():
                 expected.append(raw)

@@ -441,13 +441,15 @@ def test_deck_refuses_bad_triangles_with_file_and_line(tmp_path, capsys):
     assert main(["check", str(deck)]) == 2
     err = capsys.readouterr().err
     first = len(nodes) + 3                                   # line of element 1
-    for eid in (2, 3, 4):
+    for eid in (3, 4):
         assert f"tri.dat:{first + eid - 1}: *ELEMENT: element {eid} is inverted or degenerate" in err
-    assert "element 1 " not in err
-    # the good element alone passes
-    good = text.replace("\n" + "\n".join(elements[1:]), "")
+    assert "element 1 " not in err and "element 2 " not in err
+    # the good element and the clockwise one (renumbered, with a notice) pass
+    good = text.replace("\n" + "\n".join(elements[2:]), "")
     deck.write_text(good)
     assert main(["check", str(deck)]) == 0
+    err = capsys.readouterr().err
+    assert f"notice: {deck}:{first + 1}: *ELEMENT: 1 element given clockwise renumbered" in err
 
 
 # --------------------------------------------------------------------------------------------

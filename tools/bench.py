@@ -355,12 +355,9 @@ def _contact_case(repeat: int, nx: int, ny: int, kernel: bool) -> dict:
     problem = build_problem(model)
     k = problem.kinds.index("contact")
     g = problem.groups[k]
-    available = True
-    try:
-        import lagamine_py.laws.coulomb_numba  # noqa: F401
-    except ImportError:
-        available = False
-    g.law.use_kernel = g.foundation.use_kernel = kernel
+    from lagamine_py import kernels
+    available = kernels.module("contact") is not None
+    g.use_kernels(kernel)
     states = problem.init_states()
     n = len(model.coords)
     u_old = np.zeros((n, 2))

@@ -11,7 +11,7 @@ import math
 import tempfile
 from pathlib import Path
 
-from .findings import ContractFailure, Finding, Skip, Suite, construct, require
+from .findings import ContractFailure, Finding, Skip, Suite, require
 from .writers import sample_run
 
 
@@ -68,14 +68,9 @@ def _check_finished(check) -> str:
 def check_check(cls) -> list[Finding]:
     """The check contract (:class:`~lagamine_py.checks.base.Check`) on ``cls``."""
     s = Suite(CHECK_ITEMS)
-    built = {}
-
-    def build():
-        built["check"], text = construct(cls)
-        return f"built from example_values(): {text}"
-
-    if not s.run("parameters", build):
+    check = s.build(cls)
+    if check is None:
         return s.blocked("the check could not be built from example_values()")
-    s.run("empty directory", _check_empty, built["check"])
-    s.run("finished run", _check_finished, built["check"])
+    s.run("empty directory", _check_empty, check)
+    s.run("finished run", _check_finished, check)
     return s.findings

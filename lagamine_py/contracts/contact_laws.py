@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .findings import (ContractFailure, Finding, Suite, all_within, changed_keys, construct,
+from .findings import (ContractFailure, Finding, Suite, all_within, changed_keys,
                        require, within)
 
 
@@ -300,15 +300,9 @@ def _contact_frozen(law, probe: _ContactProbe) -> str:
 def check_contact_law(cls) -> list[Finding]:
     """The contact-law contract (:class:`~lagamine_py.laws.base.ContactLaw`) on ``cls``."""
     s = Suite(CONTACT_ITEMS)
-    built = {}
-
-    def build():
-        built["law"], text = construct(cls)
-        return f"built from example_values(): {text}"
-
-    if not s.run("parameters", build):
+    law = s.build(cls)
+    if law is None:
         return s.blocked("the law could not be built from example_values()")
-    law = built["law"]
     try:
         probe = _contact_probe(law)
     except ContractFailure as exc:

@@ -1,7 +1,8 @@
 """The element contract (:class:`lagamine_py.elements.base.Element`) as checks.
 
 Only the contract is used -- ``node_xi``, ``faces``, ``outline``, ``vtk_cell``, ``cell_elements``,
-``shape_functions``, ``gauss_rule``, ``recovery_basis``, ``sample_points``, ``invalid`` and the
+``shape_functions``, ``gauss_rule``, ``recovery_basis``, ``reference_domain``,
+``jacobian_degree``, ``invalid``, ``mirror`` and the
 mechanics ``Cls(ids, conn, coords0, law, thickness).compute`` -- so any topology declared through
 it is checked (quadrilaterals, triangles ...).  Independent sources: exact invariants (partition
 of unity, areas and first moments of affine elements, linear fields, rigid motions), the patch
@@ -92,7 +93,7 @@ def _reference_frame(cls) -> tuple[np.ndarray, float]:
 
 def _shape_functions(cls) -> str:
     xi = np.asarray(cls.node_xi, float)
-    pts = np.concatenate([_interior_points(cls, 40, 1), cls.gauss_rule()[0], cls.sample_points()])
+    pts = np.concatenate([_interior_points(cls, 40, 1), cls.gauss_rule()[0], cls.node_xi])
     N, dN = cls.shape_functions(pts)
     require(N.shape == (len(pts), cls.nen) and dN.shape == (len(pts), cls.nen, 2),
             f"shape_functions gives N {N.shape}, dN {dN.shape}; the contract says "
@@ -198,19 +199,51 @@ def _outline(cls) -> str:
     return f"outline {tuple(out)} walks the {len(boundary)} face segments in order"
 
 
+def _fd_det_j(cls, X: np.ndarray, pts: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """det dx/dxi of element ``X`` (nen, 2) at natural points ``pts`` by central differences of
+    the position map (independent of the shape-function derivatives)."""
+    def pos(q):
+        return cls.shape_functions(q)[0] @ X
+    cols = [(pos(pts + d) - pos(pts - d)) / (2 * h) for d in np.eye(2) * h]
+    return cols[0][:, 0] * cols[1][:, 1] - cols[0][:, 1] * cols[1][:, 0]
+
+
+def _det_j_monomials(cls, pts: np.ndarray) -> np.ndarray:
+    """The monomials of the declared det J space at ``pts``: tensor degree ``(p, q)`` on the
+    square, total degree on the triangle."""
+    deg = np.atleast_1d(cls.jacobian_degree)
+    x, y = pts[:, 0], pts[:, 1]
+    if cls.reference_domain == "square":
+        return np.stack([x**i * y**j for i in range(deg[0] + 1) for j in range(deg[-1] + 1)], 1)
+    return np.stack([x**i * y**j for i in range(deg[0] + 1) for j in range(deg[0] + 1 - i)], 1)
+
+
 def _jacobian(cls) -> str:
     xi = np.asarray(cls.node_xi, float)
-    sample = np.asarray(cls.sample_points(), float)
-    poly = _reference_polygon(cls)
-
-    def missing(pts):
-        d = np.linalg.norm(pts[:, None] - sample[None], axis=-1).min(axis=1)
-        return int((d > 1e-12).sum())
-
-    require(missing(xi) == 0 and missing(np.asarray(cls.gauss_rule()[0])) == 0,
-            f"sample_points() lacks {missing(xi)} node(s) and "
-            f"{missing(np.asarray(cls.gauss_rule()[0]))} Gauss point(s)")
-    require(_inside(poly, sample).all(), "sample_points() has points outside the element")
+    # the Bernstein bound is only a proof if det J lies in the declared polynomial space: a
+    # least-squares fit of its monomials through det J of a distorted element is exact
+    rng = np.random.default_rng(3)
+    size = float(np.ptp(xi, axis=0).max())
+    X = xi + 0.08 * size * rng.normal(size=xi.shape)
+    pts = _interior_points(cls, 60, 4)
+    fd = _fd_det_j(cls, X, pts)
+    basis = _det_j_monomials(cls, pts)
+    fit = np.linalg.lstsq(basis, fd, rcond=None)[0]
+    misfit = float(np.abs(basis @ fit - fd).max() / np.abs(fd).max())
+    require(misfit < 1e-6,
+            f"det J of a distorted element is not a polynomial of the declared jacobian_degree "
+            f"{cls.jacobian_degree} on the {cls.reference_domain} (misfit {misfit:.2g}): the "
+            f"whole-element Jacobian check would prove nothing")
+    # mirror(): the turned element lists every node once, runs clockwise, keeps the edges
+    perm = np.asarray(cls.mirror())
+    corners = [f[0] for f in cls.faces]
+    require(sorted(perm.tolist()) == list(range(cls.nen)) and _signed_area(xi[perm][corners]) < 0,
+            f"mirror() {tuple(perm)} does not turn the element over")
+    turned = cls.mirror_faces()
+    for k, f in enumerate(cls.faces):
+        g = cls.faces[turned[k] - 1]
+        require({int(perm[g[0]]), int(perm[g[1]])} == {f[0], f[1]},
+                f"mirror_faces() sends face S{k + 1} to S{turned[k]}, another edge")
     lo = xi[:, 0].min()
     shift = np.array([1.0 - lo, 0.0]) if cls.axisymmetric else np.zeros(2)
     mirror_shift = np.array([1.0 + xi[:, 0].max(), 0.0]) if cls.axisymmetric else np.zeros(2)
@@ -227,7 +260,8 @@ def _jacobian(cls) -> str:
     wrong = [names[k] for k in range(len(want)) if bool(bad[k]) != want[k]]
     require(not wrong, f"invalid() is wrong for the {', '.join(wrong)} element(s) "
                        f"(min det J {', '.join(f'{d:.3g}' for d in detj)})")
-    return all_within([("|min det J - 1| (reference element)", abs(detj[0] - 1.0), 1e-12),
+    return all_within([("det J misfit of the declared degree", misfit, 1e-6),
+                       ("|min det J - 1| (reference element)", abs(detj[0] - 1.0), 1e-12),
                        ("|min det J - det A| / det A (affine)", abs(detj[1] / 1.25 - 1.0), 1e-12),
                        ("|min det J + 1| (mirror image, refused)", abs(detj[2] + 1.0), 1e-12)])
 

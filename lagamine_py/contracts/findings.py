@@ -101,6 +101,18 @@ class Suite:
             self.findings.append(Finding(name, False, f"raised {type(exc).__name__}: {exc}"))
         return False
 
+    def build(self, cls):
+        """The plugin built from ``cls.example_values()`` (the check "parameters"), or None
+        when it could not be built."""
+        built = []
+
+        def make():
+            obj, text = construct(cls)
+            built.append(obj)
+            return f"built from example_values(): {text}"
+
+        return built[0] if self.run("parameters", make) else None
+
     def blocked(self, why: str) -> list[Finding]:
         """Fail every check not run yet, saying why (construction failed, say)."""
         done = {f.check for f in self.findings}

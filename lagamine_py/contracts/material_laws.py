@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .findings import Finding, Skip, Suite, all_within, changed_keys, construct, require, within
+from .findings import Finding, Skip, Suite, all_within, changed_keys, require, within
 
 
 LAW_ITEMS = ("parameters", "init_state", "elastic moduli", "material-point paths",
@@ -217,17 +217,12 @@ def _law_moduli(law) -> str:
 def check_material_law(cls) -> list[Finding]:
     """The material-law contract (:class:`~lagamine_py.laws.base.MaterialLaw`) on ``cls``."""
     s = Suite(LAW_ITEMS)
-    built = {}
-
-    def build():
-        built["law"], text = construct(cls)
-        return f"built from example_values(): {text}"
-
-    if not s.run("parameters", build):
+    law = s.build(cls)
+    if law is None:
         return s.blocked("the law could not be built from example_values()")
-    law = built["law"]
     s.run("init_state", _law_init, law)
     s.run("elastic moduli", _law_moduli, law)
+    built = {}
 
     def paths():
         built["points"], text, problem = _law_points(law)

@@ -55,6 +55,9 @@ class Param:
     ``type`` is ``float``, ``int``, ``str`` or ``bool``.  ``default`` is :data:`REQUIRED` for a
     required parameter (``None``: optional, absent unless given).  ``bounds`` is an inclusive
     ``(low, high)`` pair (``None``: unbounded), ``gt`` a strict lower bound (``gt=0.0``: > 0).
+    ``type`` may also be ``tuple``: a table of numbers, rows of ``columns`` values (a law's
+    hardening curve), given by a deck as the data lines of a keyword named like the parameter
+    (``*PLASTIC`` after ``*MATERIAL``), never as ``KEY=VALUE``.
     ``choices`` restricts a string to those names, a number to those numbers, and lets a number
     accept a keyword such as ``AUTO``; it may be a callable returning the tuple, resolved when a
     value is checked (the registered solvers, say).  ``upper`` upper-cases a string (names are case-insensitive); ``flag``
@@ -71,6 +74,7 @@ class Param:
     gt: float | None = None
     upper: bool = False
     flag: bool = False
+    columns: tuple[str, ...] = ()
 
     @property
     def required(self) -> bool:
@@ -87,6 +91,8 @@ class Param:
             if raw is not None and raw is not True:
                 raise ParamError(f"{self.name} takes no value")
             return True
+        if self.type is tuple:
+            return self._table(raw)
         if raw is None or (isinstance(raw, str) and not raw.strip()):
             raise ParamError(f"{self.name} needs a value ({self.name}=...)")
         choices = self.allowed()
@@ -146,7 +152,7 @@ class Param:
         default when there is one, else the first choice, else a number inside the bounds
         (their midpoint when both are given, one unit -- or the bound's magnitude -- inside a
         single bound, 1 when unbounded).  None for an optional parameter without a default and
-        for a string without choices: nothing valid can be told from the declaration."""
+        for a string without choices or a table: nothing valid can be told from the declaration."""
         if self.flag:
             return False
         if not self.required:
@@ -156,7 +162,7 @@ class Param:
             return choices[0]
         if self.type is bool:
             return False
-        if self.type is str:
+        if self.type in (str, tuple):      # a table's valid rows depend on the plugin
             return None
         low, high = self.bounds
         if self.gt is not None:
@@ -175,10 +181,29 @@ class Param:
                 value = math.floor(self.gt) + 1
         return self.type(value)
 
+    def _table(self, raw: Any) -> tuple[tuple[float, ...], ...]:
+        """A table value: rows of ``len(columns)`` finite numbers, at least one."""
+        if isinstance(raw, str):
+            raise ParamError(f"{self.name} is a table ({', '.join(self.columns)} rows): give it as the "
+                             f"data lines of a *{self.name} block, not as {self.name}=")
+        try:
+            rows = tuple(tuple(float(v) for v in row) for row in raw)
+        except (TypeError, ValueError):
+            raise ParamError(f"{self.name} must be rows of numbers ({', '.join(self.columns)})") from None
+        if not rows or any(len(r) != len(self.columns) for r in rows):
+            raise ParamError(f"{self.name} must be at least one row of {len(self.columns)} numbers "
+                             f"({', '.join(self.columns)})")
+        if not all(math.isfinite(v) for r in rows for v in r):
+            raise ParamError(f"{self.name} must hold finite numbers")
+        return rows
+
     def describe(self) -> str:
         """One line for ``lagamine-py plugins``: name, type, unit, default, range, doc."""
         if self.flag:
             return f"{self.name} (flag): {self.doc}"
+        if self.type is tuple:
+            return (f"{self.name} (table of rows: {', '.join(self.columns)}; "
+                    f"{'required' if self.required else 'optional'}, a *{self.name} block): {self.doc}")
         default = "required" if self.required else f"default {self.default}"
         lo, hi = self.bounds
         rng = ""

@@ -7,6 +7,7 @@ their file and line).  ``reference_markdown()`` writes the keyword reference fro
 """
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -34,9 +35,28 @@ def parse_deck(path, parameters: dict[str, str] | None = None) -> list[Block]:
 
 
 def deck_digest(path, parameters: dict[str, str] | None = None) -> str:
-    """The digest of the deck's expanded text (every file read, the parameter values given):
-    what :attr:`Model.source` records, without building the model (the deck may have errors)."""
-    return parse_deck_blocks(path, Problems(), parameters)[2]
+    """The digest of the deck's expanded text (every file read, the parameter values given,
+    the mesh files of ``*IMPORT``): what :attr:`Model.source` records, without building the
+    model (the deck may have errors)."""
+    blocks, _, digest = parse_deck_blocks(path, Problems(), parameters)
+    return _with_imports(digest, blocks)
+
+
+def _with_imports(digest: str, blocks: list[Block]) -> str:
+    """``digest`` extended by the bytes of the files ``*IMPORT`` reads (the builder reads them,
+    not the reader); unchanged for a deck without ``*IMPORT``."""
+    imports = [b for b in blocks if b.keyword == "IMPORT" and b.params.get("INPUT")]
+    if not imports:
+        return digest
+    h = hashlib.sha256(digest.encode())
+    for blk in imports:
+        path = Path(blk.file).parent / str(blk.params["INPUT"])
+        try:
+            data = path.read_bytes() if path.is_file() else b""
+        except OSError:
+            data = b""
+        h.update(b"\0IMPORT %d\0" % len(data) + data)
+    return h.hexdigest()
 
 
 def load_deck(path, parameters: dict[str, str] | None = None) -> Model:
@@ -52,6 +72,6 @@ def load_deck(path, parameters: dict[str, str] | None = None) -> Model:
     with np.errstate(all="ignore"):     # huge values are reported as deck errors, not warnings
         model = build_model(Path(path).stem, blocks, problems)
     problems.raise_if_any()
-    model.source = DeckSource(str(Path(path).resolve()), digest,
+    model.source = DeckSource(str(Path(path).resolve()), _with_imports(digest, blocks),
                               {str(k): str(v) for k, v in (parameters or {}).items()})
     return model

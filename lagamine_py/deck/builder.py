@@ -1,11 +1,20 @@
 """Keyword blocks -> :class:`lagamine_py.model.Model`, with every problem of the deck collected.
 
 Blocks are read in deck order: a name (set, surface, material, foundation, contact law,
-amplitude) or a node/element id must be defined before it is used.  Model data comes before
+amplitude) or a node/element id must be defined before it is used -- except a material, which
+may follow the sections that use it (Abaqus writes the materials after the parts).  Model data comes before
 the first ``*STEP``; step data lies between ``*STEP`` and ``*END STEP``.  When the model data is
 complete (at the first ``*STEP``), the element blocks are assembled and checked: every element
-has a ``*SOLID``, every material is used, plane strain and axisymmetric types are not mixed,
-no element is inverted or degenerate (det J > 0 at its Gauss points and nodes).
+has a ``*SOLID``, every material is used, plane strain and axisymmetric types are not mixed, no
+element is inverted or degenerate anywhere inside (det J > 0 proved over the whole element, see
+:meth:`lagamine_py.elements.base.Element.jacobian_check`), every surface lies on the boundary.
+Clockwise elements (det J < 0 everywhere: the mirror image of a valid element) are renumbered
+counter-clockwise, and the surfaces on them keep their edges; nodes that no element uses are
+left out.  Each of these, and the Abaqus keywords that carry nothing here (:mod:`.abaqus`), is
+said once in :attr:`Model.notices <lagamine_py.model.Model.notices>`.
+
+Abaqus structure (``*PART``, ``*INSTANCE`` ...) is flattened first (:func:`.abaqus.flatten`);
+``*IMPORT`` reads a mesh file (:mod:`.imports`).
 """
 from __future__ import annotations
 
@@ -21,10 +30,12 @@ from ..foundation import Foundation
 from ..model import (CONTROL_PARAMS, OUTPUT_FIELDS, Amplitude, Boundary, CLoad, ContactLawSpec,
                      ContactSpec, DLoad, ElementBlock, FoundationMotion, FoundationSpec,
                      MaterialSpec, Model, OutputRequest, Step, Surface, Where)
+from . import abaqus
 from .errors import Problems
 from .grammar import Block, Num, NumberRows
+from .imports import ImportMixin
 from .keywords import KEYWORDS, check_data, check_params, data_spec
-from .mesh import ElementGroup, ElementIndex, Files, NodeTable
+from .mesh import ElementGroup, ElementIndex, Files, NodeTable, face_table
 
 
 # Keywords whose readable data lines are used even when other lines of the block failed
@@ -42,10 +53,19 @@ def _few(ids, n=8) -> str:
     return ", ".join(ids[:n]) + (f" and {len(ids) - n} more" if len(ids) > n else "")
 
 
-class _Builder:
+class _PendingMaterial:
+    """A *MATERIAL whose cards (*ELASTIC, *PLASTIC) may still follow."""
+
+    def __init__(self, name: str, law: str | None, pairs, block: Block):
+        self.name, self.law, self.pairs, self.block = name, law, pairs, block
+        self.elastic = None          # (row, E, nu)
+        self.plastic = None          # (block, rows (k, 2))
+
+
+class _Builder(ImportMixin):
     def __init__(self, name: str, blocks: list[Block], problems: Problems):
         self.pb = problems
-        self.blocks = blocks
+        self.blocks = abaqus.flatten(blocks, problems)
         self.m = Model(name)
         self.files = Files()
         self.nodes = NodeTable(self.files)
@@ -60,6 +80,13 @@ class _Builder:
         self.later = self._definitions()
         self.index = 0                       # of the block being read
         self.solid_failed = False
+        self.material: _PendingMaterial | None = None
+        self.skipped: list[Block] = []       # keywords that carry nothing here
+        self.curves: dict = {}               # name -> an imported tool profile (imports._Curve)
+        self.curve_rows: list[np.ndarray] = []   # node rows of those profiles (not the body's)
+        self.importing = None                # the *IMPORT being read (its element types)
+        self.import_failed = False           # an *IMPORT could not be read: its names are missing
+        self.row_map: np.ndarray | None = None   # old node row -> row after unused nodes left out
 
     # ------------------------------------------------------------ helpers
     def _definitions(self) -> dict[tuple[str, str], tuple[str, int, int]]:
@@ -117,6 +144,8 @@ class _Builder:
         seen = self._defined(kind, name)
         if seen is not None and seen[2] < self.index:
             return
+        if self.import_failed and kind in ("NSET", "ELSET", "SURFACE"):
+            return                           # maybe a name of the mesh that could not be read
         self.pb.add(file, line, keyword, prefix + self._undefined(kind, name, known))
 
     def _undefined(self, kind: str, name, known) -> str:
@@ -144,7 +173,8 @@ class _Builder:
         try:
             canonical = registry.canonical("elements", name)
         except KeyError as exc:
-            self.pb.at(blk, f"TYPE={name}: {exc.args[0]}")
+            why = abaqus.advice(name)
+            self.pb.at(blk, f"TYPE={name}: {why or exc.args[0]}")
             return None, None, 0
         cls = registry.get("elements", canonical)
         return canonical, cls, cls.nen
@@ -162,6 +192,12 @@ class _Builder:
             if rows[0] < 0:
                 self._missing(row.file, row.line, blk.keyword, "NODE", target, ())
                 return None
+            if self.row_map is not None:
+                rows = self.row_map[rows]
+                if rows[0] < 0:
+                    self.pb.add(row.file, row.line, blk.keyword, f"node {target} is used by no element: it "
+                                                                 f"was left out of the model (it has no stiffness)")
+                    return None
             return rows
         if target not in self.m.nsets:
             self._missing(row.file, row.line, blk.keyword, "NSET", target, self.m.nsets)
@@ -173,12 +209,15 @@ class _Builder:
         for self.index, blk in enumerate(self.blocks):
             self._block(blk)
         self.index = len(self.blocks)
+        if self.material is not None:
+            self._finish_material()
         if self.step is not None:
             self.pb.at(self.step.where, f"*END STEP missing: step {self.step.name} is not closed "
                                         f"before the end of the deck")
             self._close_step()
         if not self.model_done:
             self._finish_model()
+        self._skipped_notice()
         if not self.m.steps and self.blocks:
             last = self.blocks[-1]
             self.pb.add(last.file, last.line, last.keyword, "the deck has no step: add *STEP, *STATIC "
@@ -187,6 +226,11 @@ class _Builder:
 
     def _block(self, blk: Block) -> None:
         kw = blk.keyword
+        if abaqus.skipped(blk):
+            self.skipped.append(blk)
+            return
+        if self.material is not None and kw not in ("ELASTIC", "PLASTIC"):
+            self._finish_material()
         spec = KEYWORDS.get(kw)
         if spec is None:
             if not blk.broken:
@@ -382,7 +426,10 @@ class _Builder:
         return ids[ok]
 
     def _kw_element(self, blk, params, rows):
-        grp = self._new_group(blk, params["TYPE"])
+        if self.importing is not None:
+            grp = self._import_group(blk, params["TYPE"])
+        else:
+            grp = self._new_group(blk, params["TYPE"])
         if grp is None:
             return
         added = self._add_elements(grp, *self._table(rows, grp.nen + 1))
@@ -526,45 +573,121 @@ class _Builder:
         if ok:
             self.m.surfaces[name] = Surface(name, np.asarray(elems, int), np.asarray(faces, int), blk.where)
 
-    def _plugin(self, blk, kind: str, type_name: str, pairs):
-        """Plugin class and validated parameters, or (None, None) after reporting.  The plugin is
-        built once, so that the constraints its constructor checks between parameters (KT + HB
-        > 0, say) are reported here: ``check`` refuses what ``run`` would."""
+    def _plugin(self, blk, kind: str, type_name: str, pairs, lines: dict | None = None):
+        """Plugin class and validated parameters, or (None, None) after reporting.  ``pairs``:
+        the (row, Pair) items of the block, or a dict of given values with ``lines`` the line
+        of each (for messages).  The plugin is built once, so that the constraints its
+        constructor checks between parameters (KT + HB > 0, say) are reported here: ``check``
+        refuses what ``run`` would."""
         try:
             cls = registry.get(kind, type_name)
         except KeyError as exc:
             self.pb.at(blk, exc.args[0])
             return None, None
-        given = {pair.key: pair.text for _row, pair in pairs}
+        if isinstance(pairs, dict):
+            given = pairs
+        else:
+            given = {pair.key: pair.text for _row, pair in pairs}
+            lines = {pair.key: row.line for row, pair in pairs or ()}
         try:
             values = validate_params(cls, given)
             cls(**given)
         except ParamError as exc:
-            self._param_error(blk, exc, pairs)
+            self._param_error(blk, exc, lines or {})
             return None, None
         return cls, values
 
-    def _param_error(self, blk, exc: ParamError, pairs) -> None:
+    def _param_error(self, blk, exc: ParamError, line_of: dict) -> None:
         """Report each part of a ParamError at the data line of the parameter it names."""
-        line_of = {pair.key: row.line for row, pair in pairs or ()}
         for part in _split_param_error(str(exc)):
             words = set(re.findall(r"[A-Za-z_]\w*", part.upper()))
             key = next((k for k in line_of if k in words), None)
             self.pb.at(blk, part, line=line_of.get(key))
 
     def _kw_material(self, blk, params, pairs):
+        """A material: with LAW=, the law's KEY=VALUE parameters (and a *PLASTIC table for a law
+        that takes one); without (Abaqus), the *ELASTIC and *PLASTIC cards that follow give it:
+        ELASTIC, or J2_TABLE with a *PLASTIC.  Built when its cards are over."""
         name = params["NAME"]
         if self._defined_twice(blk, "material", name, self.m.materials):
             return
-        cls, values = self._plugin(blk, "laws", params["LAW"], pairs)
+        if params["LAW"] is None and pairs:
+            row = pairs[0][0]
+            self.pb.add(row.file, row.line, blk.keyword, "KEY=VALUE data needs LAW= on the *MATERIAL line "
+                                                         "(without LAW=, *ELASTIC and *PLASTIC cards follow)")
+            return
+        self.material = _PendingMaterial(name, params["LAW"], pairs, blk)
+
+    def _material_card(self, blk) -> _PendingMaterial | None:
+        if self.material is None:
+            self.pb.at(blk, f"*{blk.keyword} must follow a *MATERIAL (or its other cards)")
+        return self.material
+
+    def _kw_elastic(self, blk, params, rows):
+        pm = self._material_card(blk)
+        if pm is None:
+            return
+        if pm.law is not None:
+            self.pb.at(blk, f"material {pm.name} has LAW={pm.law}: give E= and NU= on its data lines "
+                            f"(*ELASTIC is for a *MATERIAL without LAW=)")
+            pm.law = "?"                              # reported: do not build it
+            return
+        if pm.elastic is not None:
+            self.pb.at(blk, f"material {pm.name} has two *ELASTIC")
+            return
+        row, vals = rows[0]
+        if len(vals) < 2:
+            self.pb.add(row.file, row.line, blk.keyword, "expected E, nu")
+            return
+        pm.elastic = (row, vals[0], vals[1])
+
+    def _kw_plastic(self, blk, params, rows):
+        pm = self._material_card(blk)
+        if pm is None:
+            return
+        if pm.plastic is not None:
+            self.pb.at(blk, f"material {pm.name} has two *PLASTIC")
+            return
+        table = np.array([vals + [np.nan] * (3 - len(vals)) for _row, vals in rows], float)
+        temps = table[:, 2]
+        if np.isfinite(temps).any() and not (np.isfinite(temps).all() and np.ptp(temps) == 0.0):
+            self.pb.at(blk, "a hardening table that depends on temperature is not supported")
+            return
+        pm.plastic = (blk, table[:, :2])
+
+    def _finish_material(self) -> None:
+        pm, self.material = self.material, None
+        if pm.law == "?":
+            return
+        lines = {pair.key: row.line for row, pair in pm.pairs or ()}
+        if pm.law is None:
+            if pm.elastic is None:
+                self.pb.at(pm.block, f"material {pm.name} has no law: give LAW= (and its parameters), "
+                                     f"or an *ELASTIC card (E, nu) and optionally *PLASTIC")
+                return
+            row, E, nu = pm.elastic
+            law, given = ("J2_TABLE" if pm.plastic is not None else "ELASTIC"), {"E": E, "NU": nu}
+            lines.update({"E": row.line, "NU": row.line})
+        else:
+            law = pm.law
+            given = {pair.key: pair.text for _row, pair in pm.pairs}
+        if pm.plastic is not None:
+            if "PLASTIC" in given:
+                self.pb.at(pm.block, "PLASTIC is given by the *PLASTIC block: leave PLASTIC= out",
+                           line=lines["PLASTIC"])
+                return
+            given["PLASTIC"] = pm.plastic[1].tolist()
+            lines["PLASTIC"] = pm.plastic[0].line
+        cls, values = self._plugin(pm.block, "laws", law, given, lines)
         if cls is not None:
-            self.m.materials[name] = MaterialSpec(name, params["LAW"], values, blk.where)
+            self.m.materials[pm.name] = MaterialSpec(pm.name, law, values, pm.block.where)
 
     def _kw_solid(self, blk, params, data):
         elset, mat = params["ELSET"], params["MATERIAL"]
         ok = True
         self.used_materials.add(mat)
-        if mat not in self.m.materials:
+        # a material may come after the sections that use it (Abaqus writes it after the parts)
+        if mat not in self.m.materials and self._defined("MATERIAL", mat) is None:
             self._missing(blk.file, blk.line, blk.keyword, "MATERIAL", mat, self.m.materials)
             ok = False
         if elset not in self.m.elsets:
@@ -587,6 +710,16 @@ class _Builder:
             sel = (groups == g) & (solid < 0)
             self.solid_of[g][ks[sel]] = index
 
+    def _kw_solid_section(self, blk, params, rows):
+        """Abaqus's *SOLID SECTION: *SOLID with the thickness on its data line."""
+        thickness = rows[0][1][0] if rows and rows[0][1] else 1.0
+        if not thickness > 0.0:
+            row = rows[0][0]
+            self.pb.add(row.file, row.line, blk.keyword, f"thickness must be > 0, got {thickness:g}")
+            self.solid_failed = True
+            return
+        self._kw_solid(blk, {**params, "THICKNESS": thickness}, None)
+
     def _solid_of(self, groups, ks) -> np.ndarray:
         """The *SOLID index of elements (group, k) so far, -1 where none (arrays grown to the
         groups' current sizes)."""
@@ -604,6 +737,18 @@ class _Builder:
     def _kw_foundation(self, blk, params, rows):
         name = params["NAME"]
         if self._defined_twice(blk, "foundation", name, self.m.foundations):
+            return
+        if params["CURVE"] is not None:
+            if rows:
+                self.pb.add(rows[0][0].file, rows[0][0].line, blk.keyword,
+                            "give the points or CURVE=, not both")
+                return
+            pts = self._curve_points(blk, params["CURVE"], bool(params["REVERSE"]))
+            if pts is not None:
+                self.m.foundations[name] = FoundationSpec(name, pts, blk.where)
+            return
+        if params["REVERSE"]:
+            self.pb.at(blk, "REVERSE goes with CURVE= (give the points in the order you want)")
             return
         pts = np.array([vals for _row, vals in rows], float)
         if not _sane_coordinates(pts):
@@ -677,7 +822,7 @@ class _Builder:
         self._solid_of(np.zeros(0, np.int64), np.zeros(0, np.int64))     # sizes up to date
         for g, grp in enumerate(self.groups):
             bare = grp.ids()[self.solid_of[g] < 0]
-            if len(bare) and not self.solid_failed:
+            if len(bare) and not self.solid_failed and not grp.line:
                 self.pb.at(grp.block, f"element{'s' * (len(bare) > 1)} {_few(bare)} "
                                       f"{'have' if len(bare) > 1 else 'has'} no *SOLID (no material)")
         big = np.flatnonzero(~np.all(np.abs(m.coords) <= COORD_MAX, axis=1))
@@ -688,7 +833,12 @@ class _Builder:
                                        f"{_COORD_WHY}")
         if len(big):
             return
+        for grp in self._solid_groups():
+            self._orient(grp)
         self._axisymmetry()
+        self._surfaces_on_boundary()
+        self._leave_out_unused_nodes()
+        self._coincident_nodes()
         self._assemble_blocks()
         if not self.pb:
             self._foundation_sides()
@@ -718,9 +868,182 @@ class _Builder:
                                      f"body on their left; reverse the point order of *FOUNDATION, "
                                      f"NAME={spec.name} (line {spec.where.line})")
 
+    def _solid_groups(self) -> list[ElementGroup]:
+        return [grp for grp in self.groups if not grp.line]
+
+    def _notice(self, file: str, line: int, keyword: str, text: str) -> None:
+        self.m.notices.append(f"{file}:{line}: *{keyword}: {text}")
+
+    def _orient(self, grp: ElementGroup) -> None:
+        """The Jacobian check of a group (the element class's own, over the whole element):
+        clockwise elements (det J < 0 everywhere) are renumbered counter-clockwise, with the faces
+        of surfaces on them; inverted or degenerate ones are refused."""
+        conn = grp.conn()
+        if not len(conn):
+            return
+        X = self.m.coords[conn]
+        cls = grp.cls
+        check = cls.jacobian_check(X)
+        bad = ~check.valid
+        if cls.axisymmetric:
+            bad |= cls.off_axis(X)
+        ids = grp.ids()
+        if bad.any():
+            mirror = cls.mirror()
+            turned = cls.jacobian_check(X[bad][:, mirror]).valid
+            clockwise = np.zeros(len(conn), bool)
+            clockwise[np.flatnonzero(bad)[turned]] = True
+            if clockwise.any():
+                conn[clockwise] = conn[clockwise][:, mirror]
+                grp.set_conn(conn)
+                self._turn_surfaces(ids[clockwise], cls.mirror_faces())
+                k = int(np.flatnonzero(clockwise)[0])
+                f, ln = grp.where(self.files, k)
+                n = int(clockwise.sum())
+                self._notice(f, ln, grp.block.keyword,
+                             f"{n} element{'s' * (n > 1)} given clockwise renumbered counter-clockwise "
+                             f"(surfaces on {'them' if n > 1 else 'it'} keep their edges): {_few(ids[clockwise])}")
+                X = self.m.coords[conn]
+                if cls.axisymmetric:
+                    bad = bad & ~clockwise | (clockwise & cls.off_axis(X))
+                else:
+                    bad &= ~clockwise
+        bad = np.flatnonzero(bad)
+        for k in bad[:10]:
+            f, ln = grp.where(self.files, int(k))
+            self.pb.add(f, ln, grp.block.keyword, self._invalid_message(cls, ids[k], X[k], check, k))
+        if len(bad) > 10:
+            self.pb.at(grp.block, f"{len(bad) - 10} more inverted or degenerate elements: {_few(ids[bad[10:]])}")
+
+    def _invalid_message(self, cls, eid, X, check, k) -> str:
+        """Why element ``eid`` (coordinates X (nen, 2)) is refused, and where."""
+        if cls.axisymmetric and cls.off_axis(X[None])[0] and check.valid[k]:
+            return (f"element {eid} reaches r < 0 (or has a Gauss point at r = 0): in an axisymmetric "
+                    f"model the mesh lies at r = x >= 0")
+        xi = check.at[k]
+        x = cls.shape_functions(xi[None])[0][0] @ X
+        size = np.ptp(X, axis=0).max()
+        what = ("its area is zero or nearly" if abs(check.min_found[k]) <= 1e-8 * size ** 2
+                else "det J must stay > 0 over the whole element")
+        return (f"element {eid} is inverted or degenerate: det J = {check.min_found[k]:.3g} at "
+                f"({x[0]:.6g}, {x[1]:.6g}) (natural coordinates {xi[0]:.3g}, {xi[1]:.3g}); {what}: "
+                f"give its corners counter-clockwise, then the mid-side nodes, each near the middle "
+                f"of its side")
+
+    def _turn_surfaces(self, ids: np.ndarray, face_map: np.ndarray) -> None:
+        """Faces of renumbered elements ``ids`` in every surface: the same edges, new numbers."""
+        for surf in self.m.surfaces.values():
+            on = np.isin(surf.elements, ids)
+            if on.any():
+                faces = np.asarray(surf.faces).copy()
+                faces[on] = face_map[faces[on] - 1]
+                surf.faces = faces
+
+    def _surfaces_on_boundary(self) -> None:
+        """Refuse surface faces that another element shares (inside the mesh)."""
+        groups = self._solid_groups()
+        if not self.m.surfaces or not groups:
+            return
+        table = face_table([(g.cls, g.ids(), g.conn()) for g in groups])
+        shared = table.counts() > 1
+        if not shared.any():
+            return
+        width = int(table.face.max()) + 1
+        inside = np.sort(table.element[shared] * width + table.face[shared])
+        for name, surf in self.m.surfaces.items():
+            keys = np.asarray(surf.elements, np.int64) * width + np.asarray(surf.faces, np.int64)
+            at = np.minimum(np.searchsorted(inside, keys), len(inside) - 1)
+            hits = np.flatnonzero(inside[at] == keys)
+            if not len(hits):
+                continue
+            e, f = int(surf.elements[hits[0]]), int(surf.faces[hits[0]])
+            row = np.flatnonzero((table.element == e) & (table.face == f))[0]
+            _, idx = table.find(table.a[row:row + 1], table.b[row:row + 1])
+            other = [int(table.element[i]) for i in idx[0] if i >= 0 and int(table.element[i]) != e]
+            where = surf.where or Where("", 0, "SURFACE")
+            self.pb.add(where.file, where.line, where.keyword,
+                        f"surface {name}: face S{f} of element {e} is shared with element "
+                        f"{other[0] if other else '?'}: it lies inside the mesh, and a surface must lie on "
+                        f"its boundary" + (f" ({len(hits)} such faces)" if len(hits) > 1 else ""))
+
+    def _leave_out_unused_nodes(self) -> None:
+        """Nodes that no element uses carry no stiffness (their DOFs would make the system
+        singular): they are left out of the model, with a notice."""
+        m = self.m
+        used = np.zeros(len(m.node_ids), bool)
+        for grp in self._solid_groups():
+            used[grp.conn().ravel()] = True
+        if used.all() or not len(used):
+            return
+        tool = np.zeros(len(used), bool)               # nodes of imported tool profiles: expected
+        for rows in self.curve_rows:
+            tool[rows] = True
+        unused = np.flatnonzero(~used & ~tool)
+        if len(unused):
+            f, ln = self.nodes.where(int(unused[0]))
+            self._notice(f, ln, "NODE", f"{len(unused)} node{'s' * (len(unused) > 1)} used by no element "
+                                        f"{'are' if len(unused) > 1 else 'is'} left out of the model (no "
+                                        f"stiffness): {_few(m.node_ids[unused])}")
+        row_map = np.cumsum(used) - 1
+        row_map[~used] = -1
+        self.row_map = row_map
+        m.node_ids, m.coords = m.node_ids[used], m.coords[used]
+        for grp in self.groups:
+            if not grp.line:
+                grp.set_conn(row_map[grp.conn()])
+        for name, rows in m.nsets.items():
+            new = row_map[np.asarray(rows, np.int64)]
+            m.nsets[name] = new[new >= 0]
+
+    def _coincident_nodes(self) -> None:
+        """A notice for nodes at the same place (within 1e-9 of the model's size): the mesh is
+        not joined there (two bodies touching, or a mesh that should have been merged)."""
+        xy = self.m.coords
+        if len(xy) < 2:
+            return
+        tol = 1e-9 * max(np.ptp(xy, axis=0).max(), 1e-300)
+        q = np.round((xy - xy.min(axis=0)) / tol).astype(np.int64)
+        key = q[:, 0] * (int(q[:, 1].max()) + 1) + q[:, 1]
+        _, inverse, count = np.unique(key, return_inverse=True, return_counts=True)
+        inverse = inverse.ravel()
+        twice = count[inverse] > 1
+        if not twice.any():
+            return
+        rows = np.flatnonzero(twice)
+        order = rows[np.argsort(inverse[rows], kind="stable")]
+        pairs = []
+        for g in np.unique(inverse[order])[:5]:
+            members = order[inverse[order] == g]
+            pairs.append(" and ".join(str(int(self.m.node_ids[r])) for r in members)
+                         + f" at ({xy[members[0], 0]:.6g}, {xy[members[0], 1]:.6g})")
+        n = int((count > 1).sum())
+        f, ln = self.nodes.where(int(self._old_row(order[0])))
+        self._notice(f, ln, "NODE", f"{n} place{'s' * (n > 1)} of the mesh hold{'s' * (n == 1)} more than "
+                                    f"one node, which are not joined (merge them if they should be): "
+                                    + "; ".join(pairs) + (" ..." if n > 5 else ""))
+
+    def _old_row(self, row: int) -> int:
+        """The row of the node table (before unused nodes were left out) of model row ``row``."""
+        return int(np.flatnonzero(self.row_map == row)[0]) if self.row_map is not None else row
+
+    def _skipped_notice(self) -> None:
+        if not self.skipped:
+            return
+        by_kw: dict[str, list[Block]] = {}
+        for b in self.skipped:
+            by_kw.setdefault(b.keyword, []).append(b)
+        parts = []
+        for kw, blocks in by_kw.items():
+            what = "Abaqus output request" if kw == "OUTPUT" else abaqus.SKIPPED[kw]
+            at = ", ".join(f"{b.file}:{b.line}" for b in blocks[:3]) + (" ..." if len(blocks) > 3 else "")
+            parts.append(f"*{kw} ({what}; {at})")
+        first = self.skipped[0]
+        self._notice(first.file, first.line, first.keyword,
+                     "skipped, as they carry nothing for this program: " + "; ".join(parts))
+
     def _axisymmetry(self) -> None:
         kinds = {}
-        for grp in self.groups:
+        for grp in self._solid_groups():
             kinds.setdefault(bool(grp.cls.axisymmetric), grp)
         if len(kinds) > 1:
             self.pb.at(kinds[True].block, f"axisymmetric elements ({kinds[True].type}) mixed with plane ones "
@@ -729,7 +1052,7 @@ class _Builder:
         if self.m.axisymmetric and len(self.m.coords):
             r = self.m.coords[:, 0]
             tol = 1e-9 * float(np.abs(self.m.coords).max())       # relative: any length unit
-            used = np.unique(np.concatenate([g.conn().ravel() for g in self.groups] or [[]]).astype(int))
+            used = np.unique(np.concatenate([g.conn().ravel() for g in self._solid_groups()] or [[]]).astype(int))
             neg = used[r[used] < -tol]
             for row in neg[:5]:
                 nid = int(self.m.node_ids[row])
@@ -737,30 +1060,15 @@ class _Builder:
                 self.pb.add(f, ln, "NODE", f"node {nid} has r = x = {r[row]:g} < 0 in an axisymmetric model")
 
     def _assemble_blocks(self) -> None:
-        """One ElementBlock per (element type, *SOLID), and the Jacobian check."""
+        """One ElementBlock per (element type, *SOLID)."""
         m = self.m
         for s, (sblk, sparams) in enumerate(self.solids):
             for g, grp in enumerate(self.groups):
                 keep = np.flatnonzero(self.solid_of[g] == s)
-                if not len(keep):
+                if not len(keep) or grp.line:
                     continue
-                ids = grp.ids()[keep]
-                conn = grp.conn()[keep]
-                self._jacobian(grp, keep, ids, conn)
-                m.blocks.append(ElementBlock(grp.type, ids, conn, sparams["MATERIAL"], sparams["THICKNESS"],
-                                             sparams["ELSET"], sblk.where))
-
-    def _jacobian(self, grp, keep, ids, conn) -> None:
-        """Refuse inverted or degenerate elements (the element class's own check)."""
-        bad, detj = grp.cls.invalid(self.m.coords[conn])
-        bad = np.flatnonzero(bad)
-        for k in bad[:10]:
-            f, ln = grp.where(self.files, int(keep[k]))
-            self.pb.add(f, ln, grp.block.keyword,
-                        f"element {ids[k]} is inverted or degenerate (min det J = {detj[k]:.3g} <= 0): "
-                        f"give its corners counter-clockwise, then the mid-side nodes")
-        if len(bad) > 10:
-            self.pb.at(grp.block, f"{len(bad) - 10} more inverted or degenerate elements: {_few(ids[bad[10:]])}")
+                m.blocks.append(ElementBlock(grp.type, grp.ids()[keep], grp.conn()[keep], sparams["MATERIAL"],
+                                             sparams["THICKNESS"], sparams["ELSET"], sblk.where))
 
     # ------------------------------------------------------------ steps
     def _open_step(self, blk, params):
@@ -891,7 +1199,8 @@ class _Builder:
                 values["SOLVER"] = registry.canonical("solvers", values["SOLVER"])
         except (ParamError, KeyError) as exc:
             self._param_error(blk, ParamError(f"SOLVER={values['SOLVER']}: {exc.args[0]}")
-                              if isinstance(exc, KeyError) else exc, pairs)
+                              if isinstance(exc, KeyError) else exc,
+                              {pair.key: row.line for row, pair in pairs or ()})
             return
         self.step.controls.update({k: v for k, v in values.items() if k.upper() in given})
 

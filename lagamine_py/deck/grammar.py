@@ -112,12 +112,14 @@ class DataRow:
 class NumberRows:
     """Consecutive data lines of numbers only, read in bulk: ``values`` (n,) float, ``counts``
     (k,) the number of values on each line, lines ``line``, ``line + 1`` ... of ``file`` (or
-    ``lines`` (k,) when some were taken out); ``raw`` the lines' text (for messages)."""
+    ``lines`` (k,) when some were taken out); ``raw`` the lines' text (for messages), None when
+    the values were changed after reading (an Abaqus part placed by an instance): the text is
+    then written from the values."""
     file: str
     line: int
     counts: np.ndarray
     values: np.ndarray
-    raw: list[str]
+    raw: list[str] | None
     lines: np.ndarray | None = None
 
     def __len__(self) -> int:
@@ -126,6 +128,25 @@ class NumberRows:
     def line_numbers(self) -> np.ndarray:
         """(k,) the line number of each row."""
         return self.line + np.arange(len(self.counts)) if self.lines is None else self.lines
+
+    def starts(self) -> np.ndarray:
+        """(k,) the index in ``values`` of the first value of each row."""
+        return np.cumsum(self.counts) - self.counts
+
+    def text(self, k: int) -> str:
+        """The text of row ``k``."""
+        if self.raw is not None:
+            return self.raw[k]
+        s = int(self.starts()[k])
+        return ", ".join(f"{v:.17g}" for v in self.values[s:s + int(self.counts[k])])
+
+    def texts(self) -> list[str]:
+        return self.raw if self.raw is not None else [self.text(k) for k in range(len(self))]
+
+    def with_values(self, values: np.ndarray) -> "NumberRows":
+        """The same rows holding ``values`` (n,) instead (their text written from them)."""
+        return NumberRows(self.file, self.line, self.counts, np.asarray(values, float), None,
+                          self.lines)
 
     def table(self) -> np.ndarray | None:
         """The values as a (k, w) array when every line holds ``w`` values, else None."""
@@ -136,7 +157,7 @@ class NumberRows:
     def rows(self) -> list[DataRow]:
         """The lines as :class:`DataRow` objects with :class:`Num` tokens (the slow path)."""
         return [DataRow(self.file, int(line), [Num(t.strip()) for t in text.rstrip(" \t\r,").split(",")])
-                for line, text in zip(self.line_numbers(), self.raw)]
+                for line, text in zip(self.line_numbers(), self.texts())]
 
 
 @dataclass
@@ -223,11 +244,17 @@ class _Grammar:
         text.set_parse_action(lambda s, loc, t: TextLine(self.lineno(loc), t[0].rstrip()))
         heading_section = heading + pp.ZeroOrMore(nl + pp.Optional(comment | text) + eol("end of line"))
 
+        # a data line of one comma: no value given (Abaqus writes "," for a default, as the
+        # thickness of a *SOLID SECTION)
+        empty = pp.Regex(r",[ \t\r]*(?=\n|$)").set_name("empty data line")
+        empty.set_parse_action(lambda s, loc, t: DataLine(self.lineno(loc), []))
+
         bad = pp.Regex(r"[^\n]+").set_name("line")
         bad.set_parse_action(lambda s, loc, t: BadLine(self.lineno(loc), t[0].rstrip()))
 
         # most frequent first: line ends, then lines of numbers (the mesh)
-        line = (nl | numbers_line | comment | heading_section | kw_line | data_line | bad).set_name("line")
+        line = (nl | numbers_line | comment | heading_section | kw_line | data_line | empty
+                | bad).set_name("line")
         self.deck = (pp.ZeroOrMore(line) + pp.StringEnd()).set_name("deck")
         self.strict_kw = kw_line + pp.StringEnd()
         self.strict_data = data_line + pp.StringEnd()
@@ -449,6 +476,10 @@ class _Reader:
         if why:
             self.problems.add(label, kl.line, "INCLUDE", f"included file {shown} {why}")
             return False
+        other = _not_deck_text(target)
+        if other:
+            self.problems.add(label, kl.line, "INCLUDE", f"{shown} {other}")
+            return False
         if any(target.resolve() == p for p in stack):
             self.problems.add(label, kl.line, "INCLUDE",
                               f"{shown} includes itself (directly or through other *INCLUDE)")
@@ -502,6 +533,19 @@ class _Reader:
                 self.params[it.key] = self.overrides[it.key]
             else:
                 self.params[it.key] = it.text
+
+
+def _not_deck_text(path: Path) -> str | None:
+    """Why the file at ``path`` is not deck text for *INCLUDE (a gmsh mesh, a binary file), or
+    None."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    if path.suffix.lower() == ".msh" or head.lstrip().startswith(b"$MeshFormat"):
+        return (f"is a gmsh mesh, not deck text: read it with *IMPORT, INPUT={path.name} "
+                f"(nodes, elements and physical groups)")
+    if b"\0" in head:
+        return "is not a text file (it holds binary data): *INCLUDE reads deck text"
+    return None
 
 
 def _bad_keyword(text: str) -> str | None:

@@ -62,6 +62,10 @@ def _name(name: str, required: bool = False, doc: str = "") -> Param:
 _AMP = _name("AMPLITUDE", doc="amplitude name (default: linear ramp over the step)")
 _OP = Param("OP", str, "MOD", choices=("MOD", "NEW"), doc="NEW removes the loads of this kind first")
 _PAIRS = Data("pairs", doc="`KEY=VALUE` pairs")
+# Abaqus: INTERNAL marks a set Abaqus/CAE made itself (read like any other); INSTANCE= (in an
+# *ASSEMBLY) says whose ids and sets the data lines name
+_SET_EXTRA = (Param("INTERNAL", flag=True, default=None, doc="Abaqus/CAE's own set (read as any)"),
+              _name("INSTANCE", doc="in an *ASSEMBLY: the instance whose ids and sets the lines name"))
 
 KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
     # ---------------------------------------------------------------- model data
@@ -82,11 +86,34 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
                                  _name("ELSET", doc="element set receiving these elements")),
             Data("rows", (Col("id", "int"), Col("node", "int")), repeat=1, min_lines=1,
                  doc="`id, n1, n2, ...`: corners counter-clockwise, then mid-sides"), doc="elements", bulk=True),
-    Keyword("NSET", "model", (_name("NSET", True), Param("GENERATE", flag=True, default=None)),
+    Keyword("IMPORT", "model", (Param("INPUT", str, doc="a gmsh .msh (format 2.2 or 4.1, ASCII or binary) or "
+                                                          "an Abaqus/CalculiX .inp, relative to this file"),
+                                Param("ANALYSIS", str, "PLANE STRAIN", choices=("PLANE STRAIN", "AXISYMMETRIC"),
+                                      doc="the element types the 2D elements become"),
+                                Param("INTEGRATION", str, "FULL", choices=("FULL", "REDUCED"),
+                                      doc="REDUCED: 8-node quads with 2x2 Gauss points (Q8PER, Q8AXR)"),
+                                _name("ELSET", doc="element set receiving every 2D element of the file")),
+            doc="reads the nodes, 2D elements and named sets of a mesh file: 8-node quads -> Q8, 4-node "
+                "-> Q4, 6-node triangles -> T6; gmsh physical groups: 2D -> ELSET, 1D -> SURFACE and "
+                "NSET (or a curve for *FOUNDATION, CURVE= when apart from the body), 0D -> NSET"),
+    Keyword("PART", "model", (_name("NAME", True),), doc="Abaqus part: its nodes, elements, sets and "
+                                                          "sections, placed by *INSTANCE"),
+    Keyword("END PART", "model", doc="ends a *PART"),
+    Keyword("ASSEMBLY", "model", (_name("NAME"),), doc="Abaqus assembly: instances and assembly-level sets"),
+    Keyword("END ASSEMBLY", "model", doc="ends the *ASSEMBLY"),
+    Keyword("INSTANCE", "model", (_name("NAME", True), _name("PART", True)),
+            Data("rows", tuple(Col(label, optional=k >= 2) for k, label in enumerate(
+                ("x", "y", "z", "b_x", "b_y", "b_z", "angle"))), max_lines=2,
+                 doc="optional `x, y, z`: translation; then `a_x, a_y, a_z, b_x, b_y, b_z, angle`: "
+                     "rotation by angle (degrees) about the axis from a to b (parallel to z)"),
+            doc="places a *PART: its nodes and elements (ids offset past those already defined when "
+                "they clash) and its sets, named INSTANCE.SET"),
+    Keyword("END INSTANCE", "model", doc="ends an *INSTANCE"),
+    Keyword("NSET", "model", (_name("NSET", True), Param("GENERATE", flag=True, default=None), *_SET_EXTRA),
             Data("rows", (Col("node or nset", "ref"),), repeat=1, min_lines=1, doc="node ids or node set names"),
             (("GENERATE", Data("rows", (Col("first", "int"), Col("last", "int"), Col("step", "int", True)),
                                min_lines=1, doc="`first, last, step`")),), doc="node set", bulk=True),
-    Keyword("ELSET", "model", (_name("ELSET", True), Param("GENERATE", flag=True, default=None)),
+    Keyword("ELSET", "model", (_name("ELSET", True), Param("GENERATE", flag=True, default=None), *_SET_EXTRA),
             Data("rows", (Col("element or elset", "ref"),), repeat=1, min_lines=1,
                  doc="element ids or element set names"),
             (("GENERATE", Data("rows", (Col("first", "int"), Col("last", "int"), Col("step", "int", True)),
@@ -102,13 +129,33 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
             Data("rows", (Col("element or elset", "ref"), Col("face", "face")), min_lines=1,
                  doc="`element-or-elset, face`: S1..S4 on quadrilaterals, S1..S3 on triangles"),
             doc="element faces"),
-    Keyword("MATERIAL", "model", (_name("NAME", True), _name("LAW", True, doc="material law plugin")),
+    Keyword("MATERIAL", "model", (_name("NAME", True), _name("LAW", doc="material law plugin; without it "
+                                                                       "the Abaqus cards that follow "
+                                                                       "(*ELASTIC, *PLASTIC) give the law")),
             _PAIRS, doc="material: the law's parameters"),
+    Keyword("ELASTIC", "model", (Param("TYPE", str, "ISOTROPIC", choices=("ISOTROPIC",)),),
+            Data("rows", (Col("E"), Col("nu"), Col("temperature", optional=True)), min_lines=1, max_lines=1,
+                 doc="`E, nu`"),
+            doc="after a *MATERIAL without LAW= (Abaqus): isotropic elasticity (law ELASTIC, or "
+                "J2_TABLE with a *PLASTIC)"),
+    Keyword("PLASTIC", "model", (Param("HARDENING", str, "ISOTROPIC", choices=("ISOTROPIC",)),),
+            Data("rows", (Col("yield stress"), Col("plastic strain"), Col("temperature", optional=True)),
+                 min_lines=1, doc="`yield stress, plastic strain` rows, the first at plastic strain 0"),
+            doc="after a *MATERIAL: the hardening table of J2_TABLE (piecewise linear, flat beyond "
+                "the last row)"),
     Keyword("SOLID", "model", (_name("ELSET", True), _name("MATERIAL", True),
                                Param("THICKNESS", float, 1.0, gt=0.0)),
             doc="assigns a material to elements"),
-    Keyword("FOUNDATION", "model", (_name("NAME", True),),
-            Data("rows", (Col("x"), Col("y")), min_lines=3, doc="`x, y` points, an odd count >= 3"),
+    Keyword("SOLID SECTION", "model", (_name("ELSET", True), _name("MATERIAL", True)),
+            Data("rows", (Col("thickness", optional=True),), max_lines=1,
+                 doc="optional `thickness` (plane strain; default 1)"),
+            doc="Abaqus form of *SOLID"),
+    Keyword("FOUNDATION", "model", (_name("NAME", True),
+                                    _name("CURVE", doc="a curve of an *IMPORT (a 1D group of lines apart "
+                                                       "from the body): its lines, chained, are the arcs"),
+                                    Param("REVERSE", flag=True, default=None,
+                                          doc="run the CURVE the other way (the body on its left)")),
+            Data("rows", (Col("x"), Col("y")), doc="`x, y` points, an odd count >= 3 (none with CURVE=)"),
             doc="rigid foundation: parabolic arcs through points (1,2,3), (3,4,5), ..."),
     Keyword("CONTACT LAW", "model", (_name("NAME", True), _name("TYPE", True, doc="contact law plugin")),
             _PAIRS, doc="contact law: the plugin's parameters"),
@@ -152,6 +199,21 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
     Keyword("CONTROLS", "step", data=_PAIRS, doc="Newton and step-controller settings"),
     Keyword("END STEP", "step", doc="ends a step"),
 )}
+
+
+#: keyword -> why it is skipped (it changes nothing this program computes)
+SKIPPED = {
+    "PREPRINT": "printing controls", "RESTART": "Abaqus restart files", "MONITOR": "progress output",
+    "PRINT": "printing controls", "FILE FORMAT": "results file format",
+    "NODE OUTPUT": "output request", "ELEMENT OUTPUT": "output request",
+    "CONTACT OUTPUT": "output request", "ENERGY OUTPUT": "output request",
+    "INTEGRATED OUTPUT": "output request", "SECTION OUTPUT": "output request",
+    "NODE PRINT": "output request", "EL PRINT": "output request", "CONTACT PRINT": "output request",
+    "ENERGY PRINT": "output request", "SECTION PRINT": "output request",
+    "NODE FILE": "output request", "EL FILE": "output request", "CONTACT FILE": "output request",
+    "ENERGY FILE": "output request", "SECTION FILE": "output request",
+    "DENSITY": "inertia (the analysis is static)", "PHYSICAL CONSTANTS": "physical constants",
+}
 
 
 # ---------------------------------------------------------------- checking a block
@@ -246,7 +308,7 @@ def _check_number_rows(data: Data, nr: NumberRows, keyword: str, problems: Probl
     bad &= ~bad_line[line_of]
     for v in np.flatnonzero(bad)[:1000]:
         k, p = int(line_of[v]), int(place[v])
-        tok = nr.raw[k].rstrip(" \t\r,").split(",")[p].strip()
+        tok = nr.text(k).rstrip(" \t\r,").split(",")[p].strip()
         try:
             _convert_cell(_column(data, p), Num(tok))
             message = f"value {p + 1}: cannot read {tok!r}"
@@ -258,7 +320,8 @@ def _check_number_rows(data: Data, nr: NumberRows, keyword: str, problems: Probl
         return nr, True
     keep = np.flatnonzero(~bad_line)
     good = NumberRows(nr.file, nr.line, counts[keep], values[~bad_line[line_of]],
-                      [nr.raw[k] for k in keep], nr.line_numbers()[keep])
+                      [nr.text(k) for k in keep] if nr.raw is not None else None,
+                      nr.line_numbers()[keep])
     return good, False
 
 
@@ -371,6 +434,8 @@ def _param_doc(p: Param) -> str:
         kind = "/".join(map(str, choices))
     elif p.type is bool:
         kind = "YES/NO"
+    elif p.type is tuple:
+        kind = f"table: {', '.join(p.columns)} rows of a *{p.name} block"
     else:
         kind = {float: "number", int: "integer", str: "name" if p.upper else "text"}[p.type]
     default = {True: "YES", False: "NO"}.get(p.default, p.default) if p.type is bool else p.default
@@ -397,4 +462,10 @@ def reference_markdown() -> str:
                 data += f"<br>with `{flag}`: {d.doc}"
             out.append(f"| `*{kw.name}` | {params} | {data} | {kw.doc} |")
         out.append("")
+    out += ["## Skipped", "", "Abaqus and CalculiX keywords that carry nothing for this program: read, "
+            "listed once in a notice, and skipped (so are Abaqus's `*OUTPUT, FIELD` and `*OUTPUT, HISTORY` "
+            "requests). Any other keyword this page does not list is an error.", "",
+            "| keyword | what it is |", "|---|---|"]
+    out += [f"| `*{kw}` | {why} |" for kw, why in sorted(SKIPPED.items())]
+    out.append("")
     return "\n".join(out)

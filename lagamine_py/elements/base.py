@@ -18,14 +18,17 @@ looks at a node count: the deck builder, the writers and the plots ask the eleme
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
-
 import numpy as np
 
 from ..core.plugin import Plugin
 from ..core.tensors import det2
+from . import bernstein
 
-__all__ = ["StepContext", "GroupResult", "Group", "Element", "CellBlock", "ContactPoints"]
+__all__ = ["StepContext", "GroupResult", "Group", "Element", "CellBlock", "ContactPoints",
+           "JacobianCheck"]
+
+_CHUNK = 4096          # elements (or sub-domains) per vectorised chunk: bounded temporaries
+_MAX_OPEN = 250_000    # sub-domains left open beyond this stop the subdivision (refused as undecided)
 
 
 @dataclass
@@ -49,6 +52,17 @@ class GroupResult:
     K: np.ndarray | None
     state: dict[str, np.ndarray]
     failure: str | None = None
+
+
+@dataclass
+class JacobianCheck:
+    """What :meth:`Element.jacobian_check` found: ``valid`` (e,) det J above the floor over the
+    whole element (proved); ``min_found`` (e,) the smallest det J met (a value at a point, or,
+    for an element within round-off of the floor, its lower bound); ``at`` (e, 2) the natural
+    point of that value."""
+    valid: np.ndarray
+    min_found: np.ndarray
+    at: np.ndarray
 
 
 @dataclass
@@ -164,7 +178,11 @@ class Element(Group, Plugin):
     ``axisymmetric`` integrals per radian (r dr dz) instead of per thickness;
     ``grid_order``, ``cell_elements``  how ``*MESH`` fills a rectangle: grid points per cell side
                    (1 linear, 2 quadratic) and the elements of one cell as the grid offsets
-                   (i, j) of their nodes.
+                   (i, j) of their nodes;
+    ``reference_domain``, ``jacobian_degree``  the natural domain (``"square"`` [-1, 1]^2 or
+                   ``"triangle"`` (0,0), (1,0), (0,1)) and the degree of det J as a polynomial on
+                   it (tensor ``(p, q)`` on the square, total on the triangle): the Jacobian check
+                   (:meth:`jacobian_check`) proves det J > 0 over the whole element from them.
 
     Mechanics
     ---------
@@ -188,6 +206,8 @@ class Element(Group, Plugin):
     axisymmetric: bool = False
     grid_order: int = 1
     cell_elements: tuple[tuple[tuple[int, int], ...], ...] = ()
+    reference_domain: str = "square"
+    jacobian_degree: int | tuple[int, int] = 0
 
     # -- topology: what a subclass (or its shape) provides ------------------------------------
     @classmethod
@@ -204,12 +224,6 @@ class Element(Group, Plugin):
     def recovery_basis(cls, pts: np.ndarray, nq: int) -> np.ndarray:
         """(p, nq) polynomials, as many as Gauss points and unisolvent on them, evaluated at
         natural points (p, 2): :meth:`recovery_matrix` fits them to the Gauss values."""
-        raise NotImplementedError
-
-    @classmethod
-    def sample_points(cls) -> np.ndarray:
-        """(m, 2) natural points where :meth:`min_jacobian` evaluates det J: the nodes, the
-        Gauss points and a grid over the whole element, edges included."""
         raise NotImplementedError
 
     # -- what follows from the topology --------------------------------------------------------
@@ -232,40 +246,149 @@ class Element(Group, Plugin):
         return w / w.sum()
 
     @classmethod
+    def jacobian_check(cls, coords: np.ndarray, floor=None, max_depth: int = 10) -> JacobianCheck:
+        """Whether det J stays above ``floor`` over the *whole* of each element (not only at
+        some points), with the smallest det J found and where.
+
+        det J of an isoparametric element is a polynomial on its reference domain
+        (:attr:`reference_domain`, of degree :attr:`jacobian_degree`), so its Bernstein
+        coefficients (:mod:`lagamine_py.elements.bernstein`) bound it from below: all above
+        ``floor`` proves the element valid everywhere; a value at a lattice point at or below
+        ``floor`` proves it invalid.  Elements the bound does not decide are subdivided (four
+        sub-domains a level, only the undecided ones) until it does; one still undecided after
+        ``max_depth`` levels (or when more than 250 000 sub-domains are open) has det J within
+        round-off of ``floor`` somewhere and is refused.
+
+        ``coords`` (e, nen, 2); ``floor`` (e,) or a number, default ``1e-10 size^2`` (the
+        element's largest coordinate extent).  Vectorised over elements, in chunks."""
+        coords = np.asarray(coords, float)
+        ne = len(coords)
+        if floor is None:
+            floor = 1e-10 * np.ptp(coords, axis=1).max(axis=1) ** 2 if ne else np.zeros(0)
+        floor = np.broadcast_to(np.asarray(floor, float), (ne,))
+        dom = bernstein.domain(cls.reference_domain, cls.jacobian_degree)
+        # level 0, every element on the whole domain (the same lattice for all)
+        values = cls._det_j(coords, np.arange(ne), dom.points, shared=True)      # (e, m)
+        k = values.argmin(axis=1)
+        found = values[np.arange(ne), k]
+        at = dom.points[k]
+        low = (values @ dom.to_bernstein.T).min(axis=1)
+        invalid = found <= floor
+        open_ = ~invalid & (low <= floor)
+        bound = np.where(open_, low, np.inf)
+        # deeper levels: the open sub-domains (element of each, map x = origin + matrix u)
+        elem = np.flatnonzero(open_)
+        origin = np.zeros((len(elem), 2))
+        matrix = np.broadcast_to(np.eye(2), (len(elem), 2, 2))
+        for _depth in range(max_depth):
+            if not len(elem) or len(elem) > _MAX_OPEN:                # (a bound on the work)
+                break
+            elem = np.repeat(elem, 4)                                # the four children of each
+            origin = (origin[:, None, :] + np.einsum("pij,cj->pci", matrix, dom.origins)).reshape(-1, 2)
+            matrix = np.einsum("pij,cjk->pcik", matrix, dom.matrices).reshape(-1, 2, 2)
+            pts = origin[:, None, :] + np.einsum("pij,mj->pmi", matrix, dom.points)   # (p, m, 2)
+            values = cls._det_j(coords, elem, pts, shared=False)
+            k = values.argmin(axis=1)
+            v = values[np.arange(len(elem)), k]
+            np.minimum.at(found, elem, v)
+            hit = v == found[elem]
+            at[elem[hit]] = pts[np.flatnonzero(hit), k[hit]]
+            invalid[elem[v <= floor[elem]]] = True
+            low = (values @ dom.to_bernstein.T).min(axis=1)
+            keep = (low <= floor[elem]) & ~invalid[elem]
+            open_[:] = False
+            open_[elem[keep]] = True
+            bound[elem] = np.inf
+            np.minimum.at(bound, elem[keep], low[keep])
+            elem, origin, matrix = elem[keep], origin[keep], matrix[keep]
+        # still open after max_depth: det J within round-off of the floor somewhere; refused
+        undecided = open_ & ~invalid
+        found = np.where(undecided, np.minimum(bound, floor), found)
+        return JacobianCheck(~invalid & ~undecided, found, at)
+
+    @classmethod
+    def _det_j(cls, coords, elem, pts, shared: bool) -> np.ndarray:
+        """(p, m) det J of elements ``coords[elem]`` (p,) at natural points ``pts``: (m, 2) the
+        same for all (``shared``: one BLAS product per chunk), or (p, m, 2) their own."""
+        na = cls.nen
+        out = np.empty((len(elem), pts.shape[-2]))
+        if shared:
+            _, dN = cls.shape_functions(pts)
+            nq = len(pts)
+            dN_flat = np.ascontiguousarray(dN.transpose(1, 0, 2).reshape(na, nq * 2))   # (a, q k)
+        for lo in range(0, len(elem), _CHUNK):
+            X = coords[elem[lo:lo + _CHUNK]]
+            if shared:
+                # J (e, i, q k) = X^T dN
+                J = (np.swapaxes(X, 1, 2) @ dN_flat).reshape(len(X), 2, nq, 2).transpose(0, 2, 1, 3)
+            else:
+                P = pts[lo:lo + _CHUNK]
+                _, dN = cls.shape_functions(P.reshape(-1, 2))
+                J = np.einsum("pai,pmak->pmik", X, dN.reshape(P.shape[0], P.shape[1], na, 2))
+            out[lo:lo + _CHUNK] = det2(J)
+        return out
+
+    @classmethod
     def min_jacobian(cls, coords: np.ndarray) -> np.ndarray:
-        """(e,) smallest det J of elements ``coords`` (e, nen, 2) over :meth:`sample_points`.
+        """(e,) the smallest det J found over each element by :meth:`jacobian_check`: > 0
+        exactly for the elements shown valid everywhere.
 
         In axisymmetry an element with a node at r < 0, or a Gauss point at r <= 0, gets
         ``-|min det J|`` (or -1 if that is 0), so that a ``> 0`` test rejects it."""
         coords = np.asarray(coords, float)
-        pts = cls.sample_points()
-        _, dN = cls.shape_functions(pts)
-        nq, na = len(pts), cls.nen
-        dN_flat = np.ascontiguousarray(dN.transpose(1, 0, 2).reshape(na, nq * 2))   # (a, q k)
-        out = np.empty(len(coords))
-        for lo in range(0, len(coords), 4096):                 # chunks: bounded temporaries
-            X = coords[lo:lo + 4096]
-            # J (e, i, q k) = X^T dN, one BLAS product per chunk
-            J = (np.swapaxes(X, 1, 2) @ dN_flat).reshape(len(X), 2, nq, 2).transpose(0, 2, 1, 3)
-            out[lo:lo + 4096] = det2(J).min(axis=1)
+        check = cls.jacobian_check(coords, floor=0.0)
+        out = np.where(check.valid, check.min_found, np.minimum(check.min_found, 0.0))
         if cls.axisymmetric:
-            gauss, _ = cls.gauss_rule()
-            N, _ = cls.shape_functions(gauss)
-            r = coords[..., 0]
-            size = np.ptp(coords.reshape(len(coords), -1), axis=1) + 1e-300
-            r_gauss = np.einsum("qa,ea->eq", N, r)
-            bad = (r.min(axis=1) < -1e-12 * size) | (r_gauss.min(axis=1) <= 0.0)
-            out = np.where(bad, np.where(out == 0.0, -1.0, -np.abs(out)), out)
+            out = np.where(cls.off_axis(coords), np.where(out == 0.0, -1.0, -np.abs(out)), out)
         return out
 
     @classmethod
+    def off_axis(cls, coords) -> np.ndarray:
+        """(e,) elements reaching r < 0 at a node, or r <= 0 at a Gauss point (what an
+        axisymmetric element cannot have)."""
+        gauss, _ = cls.gauss_rule()
+        N, _ = cls.shape_functions(gauss)
+        r = coords[..., 0]
+        size = np.ptp(coords.reshape(len(coords), -1), axis=1) + 1e-300
+        r_gauss = np.einsum("qa,ea->eq", N, r)
+        return (r.min(axis=1) < -1e-12 * size) | (r_gauss.min(axis=1) <= 0.0)
+
+    @classmethod
     def invalid(cls, coords: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Elements that are inverted or degenerate: ``(bad (e,) bool, min det J (e,))``, with
-        det J compared to the element's size (``<= 1e-10 size^2`` is degenerate)."""
+        """Elements that are inverted or degenerate anywhere inside: ``(bad (e,) bool, min
+        det J found (e,))``, det J compared to the element's size (``<= 1e-10 size^2`` is
+        degenerate; :meth:`jacobian_check`)."""
         coords = np.asarray(coords, float)
-        detj = cls.min_jacobian(coords)
-        size = np.ptp(coords, axis=1).max(axis=1)
-        return ~(detj > 1e-10 * size**2), detj
+        check = cls.jacobian_check(coords)
+        bad = ~check.valid
+        if cls.axisymmetric:
+            bad |= cls.off_axis(coords)
+        return bad, check.min_found
+
+    @classmethod
+    def mirror(cls) -> np.ndarray:
+        """(nen,) the local node order that turns the element over (clockwise <-> counter-
+        clockwise): node ``a`` of the turned element is node ``mirror()[a]``.  The reference
+        domain is symmetric about xi = eta, which sends node ``a`` to the node at the swapped
+        natural coordinates."""
+        xi = np.asarray(cls.node_xi, float)
+        swapped = xi[:, ::-1]
+        match = np.all(np.isclose(swapped[:, None, :], xi[None, :, :], atol=1e-12), axis=2)
+        if not (match.sum(axis=1) == 1).all():
+            raise ValueError(f"{cls.__name__}: node_xi is not symmetric about xi = eta")
+        return match.argmax(axis=1)
+
+    @classmethod
+    def mirror_faces(cls) -> np.ndarray:
+        """(faces,) face numbers 1.. of the turned element (:meth:`mirror`) holding face
+        ``k + 1`` of the element as given (the same edge, run the other way)."""
+        perm = cls.mirror()
+        inverse = np.argsort(perm)
+        out = []
+        for f in cls.faces:
+            corners = {int(inverse[a]) for a in f[:2]}
+            out.append(next(j + 1 for j, g in enumerate(cls.faces) if set(g[:2]) == corners))
+        return np.array(out)
 
     @classmethod
     def contract_problem(cls) -> str:
@@ -282,6 +405,10 @@ class Element(Group, Plugin):
             return "outline must visit every node of the faces once"
         if not cls.vtk_cell:
             return "it does not declare its VTK cell type (vtk_cell)"
+        if cls.reference_domain not in bernstein.DOMAINS:
+            return f"reference_domain must be one of {', '.join(bernstein.DOMAINS)}"
+        if not np.all(np.asarray(cls.jacobian_degree) >= 1):
+            return "it does not declare the polynomial degree of its det J (jacobian_degree)"
         return ""
 
     # -- what writers get -------------------------------------------------------------------------

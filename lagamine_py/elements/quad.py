@@ -63,7 +63,7 @@ class _Quad:
     """What Q4 and Q8 share: the square, tensor Gauss rules of ``ngauss`` points a side."""
 
     ngauss = 2
-    _GRID = np.linspace(-1.0, 1.0, 9)
+    reference_domain = "square"
 
     @classmethod
     def shape_functions(cls, pts):
@@ -83,12 +83,6 @@ class _Quad:
         xi, eta = np.asarray(pts, float).T
         return np.stack([xi**i * eta**j for i in range(n) for j in range(n)], axis=1)
 
-    @classmethod
-    def sample_points(cls):
-        g = cls._GRID
-        grid = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
-        return np.concatenate([cls.gauss_rule()[0], cls.node_xi, grid])
-
 
 class Quad4(_Quad):
     """The 4-node quadrilateral (bilinear)."""
@@ -98,6 +92,8 @@ class Quad4(_Quad):
     faces = ((0, 1), (1, 2), (2, 3), (3, 0))
     outline = (0, 1, 2, 3)
     vtk_cell = VTK_QUAD
+    # x_xi is linear in eta, x_eta in xi: det J has degree 1 in each (its xi eta terms cancel)
+    jacobian_degree = (1, 1)
     grid_order = 1
     cell_elements = (((0, 0), (1, 0), (1, 1), (0, 1)),)
 
@@ -111,6 +107,8 @@ class Quad8(_Quad):
     faces = ((0, 1, 4), (1, 2, 5), (2, 3, 6), (3, 0, 7))
     outline = (0, 4, 1, 5, 2, 6, 3, 7)
     vtk_cell = VTK_QUADRATIC_QUAD
+    # x_xi spans 1, xi, eta, xi eta, eta^2 (degree (1, 2)) and x_eta degree (2, 1): det J (3, 3)
+    jacobian_degree = (3, 3)
     grid_order = 2
     cell_elements = (((0, 0), (2, 0), (2, 2), (0, 2), (1, 0), (2, 1), (1, 2), (0, 1)),)
 

@@ -95,7 +95,8 @@ class Tri6:
     cell_elements = (((0, 0), (2, 0), (2, 2), (1, 0), (2, 1), (1, 1)),
                      ((0, 0), (2, 2), (0, 2), (1, 1), (1, 2), (0, 1)))
     ngauss = 3
-    _N_GRID = 10                 # sample_points: a grid of spacing 1/10 over the triangle
+    reference_domain = "triangle"
+    jacobian_degree = 2          # x quadratic, J linear: det J of total degree 2
 
     @classmethod
     def shape_functions(cls, pts):
@@ -115,14 +116,6 @@ class Tri6:
         xi, eta = np.asarray(pts, float).T
         return np.stack([xi**(k - j) * eta**j for k in range(degree + 1) for j in range(k + 1)],
                         axis=1)
-
-    @classmethod
-    def sample_points(cls):
-        n = cls._N_GRID
-        i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
-        inside = i + j <= n                                             # edges included
-        grid = np.stack([i[inside], j[inside]], axis=1) / n
-        return np.concatenate([cls.gauss_rule()[0], cls.node_xi, grid])
 
 
 class T6PlaneStrain(Tri6, SolidElement):

@@ -33,7 +33,7 @@ from .layout import (COULOMB_B as _B, COULOMB_CLASSICAL as _CLASSICAL, COULOMB_H
                      COULOMB_HPHI as _HPHI, COULOMB_K1 as _K1, COULOMB_K2 as _K2,
                      COULOMB_KP as _KP, COULOMB_KT as _KT, COULOMB_NK as _NK,
                      COULOMB_PHI as _PHI, COULOMB_PREDICTOR as _PREDICTOR, COULOMB_SNAP as _SNAP,
-                     ON_SURFACE_RTOL as _ON_SURFACE_RTOL, TAN_KEYS)
+                     ON_SURFACE_RTOL as _ON_SURFACE_RTOL)
 from .scalars import nmax as _nmax, nmin as _nmin
 
 __all__ = ["project_points", "face_positions", "contact_group"]

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.params import Param  # noqa: F401  (plugin authors import it from here too)
 from ..core.plugin import Parametrized
 
 __all__ = ["MaterialLaw", "ContactLaw"]

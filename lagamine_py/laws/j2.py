@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.params import Param
+from ..core.params import Param, ParamError
 from ..core.tensors import NORMAL as _NORMAL, elastic_matrix, isotropic_moduli
 from ..kernels.layout import (J2_LINEAR, SOLID_G, SOLID_H, SOLID_K, SOLID_SIGMAY,
                               SOLID_VECTOR, YIELD_RTOL)
 from .base import MaterialLaw
 
-__all__ = ["J2Plasticity", "J2Linear"]
+__all__ = ["J2Plasticity", "J2Linear", "J2Table"]
 
 _DEV = np.diag([1.0, 1.0, 1.0, 0.5])              # engineering strain -> tensor components
 _DEV[:3, :3] -= 1.0 / 3.0                          # ... and deviatoric part (2G * _DEV = dev. stiffness)
@@ -136,3 +136,62 @@ class J2Linear(J2Plasticity):
         p[SOLID_K], p[SOLID_G] = self.K, self.G
         p[SOLID_SIGMAY], p[SOLID_H] = self.values["SIGMAY"], self.values["H"]
         return J2_LINEAR, p, np.ascontiguousarray(self.D_elastic, dtype=float)
+
+
+class J2Table(J2Plasticity):
+    """J2 plasticity with piecewise-linear isotropic hardening from a table (Abaqus *PLASTIC).
+
+    The table gives the yield stress against the equivalent plastic strain (a measured flow
+    curve, say); the curve is flat beyond its last row.
+
+    The return mapping is exact for the piecewise-linear curve: with ``f(p) = q_tr - 3G (p -
+    peeq_n) - sigma_y(p)``, decreasing as long as every slope ``H_k > -3G`` (checked), the root
+    lies in the first segment at whose end ``f <= 0``; there ``sigma_y`` is linear and the root
+    closed-form, ``dq/dq_tr = H_k / (3G + H_k)`` (the consistent tangent of that segment)."""
+
+    params = (
+        Param("E", float, gt=0.0, unit="stress", doc="Young's modulus"),
+        Param("NU", float, bounds=(-0.999, 0.4999), doc="Poisson's ratio"),
+        Param("PLASTIC", tuple, columns=("yield stress", "plastic strain"),
+              doc="the hardening table, first row at plastic strain 0, strains increasing"),
+    )
+
+    def __init__(self, **values):
+        super().__init__(**values)
+        table = np.asarray(self.values["PLASTIC"], float)
+        sy, ep = table[:, 0], table[:, 1]
+        if ep[0] != 0.0:
+            raise ParamError(f"PLASTIC: the first row must be at plastic strain 0 (the initial yield "
+                             f"stress), got {ep[0]:g}")
+        if np.any(np.diff(ep) <= 0.0):
+            k = int(np.flatnonzero(np.diff(ep) <= 0.0)[0])
+            raise ParamError(f"PLASTIC: plastic strains must increase, row {k + 2} ({ep[k + 1]:g}) "
+                             f"follows {ep[k]:g}")
+        if np.any(sy <= 0.0):
+            raise ParamError(f"PLASTIC: yield stresses must be > 0, got {sy[sy <= 0.0][0]:g}")
+        slopes = np.diff(sy) / np.diff(ep)
+        if np.any(slopes <= -3.0 * self.G):
+            raise ParamError(f"PLASTIC: a slope of {slopes.min():g} is below -3G = {-3.0 * self.G:g} "
+                             f"(softening that steep has no unique return mapping)")
+        self._ep, self._sy = ep, sy
+        self._slope = np.append(slopes, 0.0)          # segment k starts at row k; flat after the last
+
+    @classmethod
+    def example_values(cls):
+        # a steep then a gentle segment, flat beyond: the contract's paths cross segment ends
+        return {"E": 200e3, "NU": 0.3, "PLASTIC": ((300.0, 0.0), (330.0, 0.002), (360.0, 0.02))}
+
+    def yield_stress(self, peeq):
+        return np.interp(np.asarray(peeq, dtype=float), self._ep, self._sy)
+
+    def _return_map(self, q_tr, peeq_n):
+        G3, ep, sy = 3.0 * self.G, self._ep, self._sy
+        # f at the rows beyond peeq_n: the root's segment ends at the first row where f <= 0
+        f_rows = q_tr[:, None] - G3 * (ep[None, :] - peeq_n[:, None]) - sy[None, :]     # (m, n)
+        ends = (ep[None, :] > peeq_n[:, None]) & (f_rows <= 0.0)
+        inside = ends.any(axis=1)
+        k = np.where(inside, ends.argmax(axis=1) - 1, len(ep) - 1)    # segment k: rows k, k + 1
+        H = self._slope[k]
+        peeq = (q_tr + G3 * peeq_n - sy[k] + H * ep[k]) / (G3 + H)
+        peeq = np.maximum(peeq, peeq_n)
+        return (q_tr - G3 * (peeq - peeq_n), peeq, H / (G3 + H), np.ones(q_tr.shape, dtype=bool))

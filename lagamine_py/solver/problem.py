@@ -50,6 +50,7 @@ class Problem:
     foundations: dict[str, Any]
     pattern: Pattern
     warnings: list[str] = field(default_factory=list)   # model advice, logged when the run starts
+    notices: list[str] = field(default_factory=list)    # what the deck builder did, logged too
     kernel: str = "AUTO"        # solid-group kernel: AUTO / NUMPY / NUMBA (see set_kernel)
 
     @property
@@ -169,7 +170,8 @@ def _surface(model, name: str):
 def build_problem(model) -> Problem:
     """Instantiate every group of ``model`` and the sparsity pattern."""
     get = registry.get
-    groups, kinds, names, blocks, advice = [], [], [], [], []
+    groups, kinds, names, blocks = [], [], [], []
+    advice = []
     laws = {name: get("laws", spec.law)(**spec.params) for name, spec in model.materials.items()}
     for blk in model.blocks:
         law = laws[blk.material] if blk.material in laws else laws[blk.material.upper()]
@@ -212,7 +214,7 @@ def build_problem(model) -> Problem:
 
     pattern = Pattern(model.ndof, [g.dofs for g in groups])
     problem = Problem(model, groups, kinds, names, blocks, pressure_groups, foundations, pattern,
-                      advice)
+                      advice, list(model.notices))
     problem.set_kernel("AUTO")       # a problem used directly behaves as a run's default
     return problem
 

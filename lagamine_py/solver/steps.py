@@ -212,8 +212,11 @@ class Controller:
             for w in self.writers.values():
                 w.start_run()
                 started.append(w)
+            advice_log = logging.getLogger("lagamine_py.advice")
+            for notice in self.problem.notices:
+                advice_log.info(notice)
             for advice in self.problem.warnings:
-                logging.getLogger("lagamine_py.advice").warning(advice)
+                advice_log.warning(advice)
             for note in self.notes:                 # what claiming the directory did
                 log.warning(note)
             if resume is None:
