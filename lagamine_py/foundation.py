@@ -262,12 +262,14 @@ class Foundation:
                     return out
         return out
 
-    def side(self, P, normals) -> np.ndarray:
+    def side(self, P, normals, extend: bool = False) -> np.ndarray:
         """For body points ``P`` (g, 2) with outward normals ``normals`` (g, 2): +1 where the
         body lies on the left of the chain (the convention), -1 on its right, 0 where it cannot
         tell (a point beyond the chain's ends).  A point off the chain is judged by the side it
-        stands on; a point on the chain (touching) by its normal, which must face the chain's
-        left normal."""
+        stands on -- the side a body that starts apart approaches from; a point on the chain
+        (touching) by its normal, which must face the chain's left normal.  ``extend``: judge
+        the points beyond the ends against the end half-lines that continue the chain (as
+        :meth:`project` does) instead of answering 0."""
         P = np.atleast_2d(np.asarray(P, float))
         normals = np.atleast_2d(np.asarray(normals, float))
         arc, s, X, dX = self.closest(P)
@@ -281,7 +283,11 @@ class Foundation:
         out = np.sign(np.where(touching, facing, side))
         end = ((arc == 0) & (s <= -1.0)) | ((arc == self.n_arcs - 1) & (s >= 1.0))
         beyond = end & ~touching & (np.abs(np.einsum("gi,gi->g", gap, t)) > np.abs(side))
-        out[beyond] = 0                                     # beyond an end: cannot tell
+        if not extend:
+            out[beyond] = 0                                 # beyond an end: cannot tell
+        else:                   # on the half-line itself: touching it, judged by the normal
+            on_line = beyond & (np.abs(side) <= 1e-6 * size)
+            out[on_line] = np.sign(facing[on_line])
         return out
 
     def closest(self, P, samples: int = 32):
@@ -398,7 +404,8 @@ class Foundation:
         b = w0 * self.B[:, 0] + w1 * self.B[:, 1]
         rel = self.A + c                                          # (j, 2)
         c0 = w0 * (rel[:, 0] - P[:, 0, None]) + w1 * (rel[:, 1] - P[:, 1, None])
-        with np.errstate(divide="ignore", invalid="ignore"):
+        # an arc that is nearly straight (a -> 0) sends its far root to +-inf: dropped below
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             disc = b * b - 4 * a * c0
             sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
             # numerically stable pair; when a -> 0, r2 -> -c0/b (the linear case) and r1 -> inf

@@ -248,6 +248,17 @@ class Step:
     where: Where | None = None
 
 
+@dataclass(frozen=True)
+class DeckSource:
+    """The deck a Model was read from: its absolute ``path``, the ``digest`` of its expanded
+    text (SHA-256 hex of every file read and of the parameter values given from outside) and
+    those ``parameters`` (NAME -> text).  Restarts and sweeps compare digests to know that
+    they resume the same model."""
+    path: str
+    digest: str
+    parameters: dict = field(default_factory=dict)
+
+
 @dataclass
 class Model:
     name: str                                  # deck stem, used for output file names
@@ -268,6 +279,7 @@ class Model:
     parameters: dict[str, Any] = field(default_factory=dict)        # *PARAMETER values
     checks: list[dict[str, Any]] = field(default_factory=list)      # *CHECK requests
     units: tuple[str, ...] = ()           # *UNITS: names of the length, force, stress units
+    source: DeckSource | None = None      # the deck it was read from (None: built by a script)
     #: what the deck builder changed or left out without it being an error ("file:line: *KW:
     #: text"): clockwise elements renumbered, nodes used by no element, keywords skipped ...
     notices: list[str] = field(default_factory=list)

@@ -441,6 +441,63 @@ def test_snap_back_softening_is_refused_at_runtime():
 
 
 # --------------------------------------------------------------------------------------------
+# The tangent's shortcut for sub-intervals where nothing re-contacts or separates.
+# --------------------------------------------------------------------------------------------
+SHORTCUT_PARAMS = {
+    "plain": dict(KP=1000.0, KT=500.0, PHI=0.3, B=1.0),
+    "no_adhesion": dict(KP=1.68e6, KT=1.68e6, PHI=0.2),
+    "softening_kinks": dict(KP=1000.0, KT=500.0, PHI=0.3, B=2.0, HB=-40.0, HPHI=-0.5),
+    "hardening": dict(KP=1000.0, KT=500.0, PHI=0.3, B=2.0, HB=30.0, HPHI=0.7),
+    "classical": dict(KP=1000.0, KT=500.0, PHI=0.3, B=2.0, HB=-40.0, HPHI=0.2,
+                      INDICATOR="CLASSICAL"),
+}
+
+
+def _closed_or_open_batch(par, rng, g=3000):
+    """Committed states around the cone and sub-interval increments in which every point stays
+    closed or stays open (no re-contact, no separation)."""
+    st = {"p": np.where(rng.random(g) < 0.3, 0.0, 20 * rng.random(g)),
+          "lam": np.where(rng.random(g) < 0.3, 0.0, 0.2 * rng.random(g)),
+          "slip": rng.random(g), "vp": rng.uniform(-1.0, 1.0, g), "dissip": rng.random(g)}
+    radius = par.get("B", 0.0) + par["PHI"] * st["p"]
+    on_cone = rng.random(g) < 0.4
+    st["tau"] = np.where(on_cone, radius * np.sign(rng.standard_normal(g)),
+                         radius * (2 * rng.random(g) - 1))
+    st["tau"][rng.random(g) < 0.1] = 0.0
+    d = 0.02 * rng.standard_normal(g)
+    du = 0.02 * rng.standard_normal(g)
+    dv = 0.02 * rng.standard_normal(g) * 10 ** rng.uniform(-4, 1, g)
+    for x in (d, du, dv):
+        x[rng.random(g) < 0.1] = 0.0
+    st["status"] = np.where(d >= 0, rng.integers(1, 3, g), OPEN).astype(np.int8)
+    st["p"] = np.where(d < 0, 0.0, st["p"])
+    return st, d, du, dv
+
+
+@pytest.mark.parametrize("name", sorted(SHORTCUT_PARAMS))
+def test_simple_tangent_equals_general_tangent(name):
+    """No re-contact, no separation: the shortcut (``Coulomb._tangent_simple``) gives the
+    general formulas' values, bit for bit."""
+    par = SHORTCUT_PARAMS[name]
+    law = Coulomb(**par)
+    st, d, du, dv = _closed_or_open_batch(par, np.random.default_rng(3))
+    seen = {}
+    general = law._tangent
+
+    def spy_simple(contact, plastic, dv_, skt, dmat, phi1):
+        seen["args"] = (contact, plastic, dv_, skt, dmat, phi1)
+        return Coulomb._tangent_simple(law, contact, plastic, dv_, skt, dmat, phi1)
+    law._tangent_simple = spy_simple
+    _, tan = law.update(st, d, du, dv)
+    contact, plastic, dv_, skt, dmat, phi1 = seen["args"]
+    none = np.zeros_like(contact)
+    ref = general(contact, none, plastic, none, none, d, du, dv_, 1.0, skt, dmat, phi1, contact)
+    assert set(tan) == set(ref)
+    for key in ref:
+        np.testing.assert_array_equal(tan[key], ref[key], err_msg=key)
+
+
+# --------------------------------------------------------------------------------------------
 # Exactness as an invariant: splitting a linear sub-interval must not change the result.
 # --------------------------------------------------------------------------------------------
 from hypothesis import given, settings, strategies as st  # noqa: E402

@@ -770,6 +770,10 @@ class _Builder(ImportMixin):
                 self.m.foundations[name] = FoundationSpec(name, pts, blk.where, ref, centre)
             return
         pts = np.array([vals for _row, vals in rows], float)
+        if not _sane_coordinates(pts):
+            self.pb.at(blk, f"foundation {name}: a coordinate of magnitude {np.abs(pts).max():.3g} "
+                            f"exceeds {COORD_MAX:g}: {_COORD_WHY}")
+            return
         if len(pts) < 3 or len(pts) % 2 == 0:
             self.pb.at(blk, f"a foundation needs an odd number >= 3 of points (arcs through points 1-2-3, "
                             f"3-4-5, ...), got {len(pts)}")
@@ -880,6 +884,14 @@ class _Builder(ImportMixin):
             if len(bare) and not self.solid_failed and not grp.line:
                 self.pb.at(grp.block, f"element{'s' * (len(bare) > 1)} {_few(bare)} "
                                       f"{'have' if len(bare) > 1 else 'has'} no *SOLID (no material)")
+        big = np.flatnonzero(~np.all(np.abs(m.coords) <= COORD_MAX, axis=1))
+        for row in big[:5]:
+            f, ln = self.nodes.where(int(row))
+            self.pb.add(f, ln, "NODE", f"node {int(m.node_ids[row])}: a coordinate of magnitude "
+                                       f"{np.abs(m.coords[row]).max():.3g} exceeds {COORD_MAX:g}: "
+                                       f"{_COORD_WHY}")
+        if len(big):
+            return
         for grp in self._solid_groups():
             self._orient(grp)
         self._axisymmetry()
@@ -914,7 +926,10 @@ class _Builder(ImportMixin):
 
     def _foundation_sides(self) -> None:
         """Each foundation must have its contact bodies on its left (the direction of travel of
-        its points): a body on its right means the points were written in the wrong order."""
+        its points): a body on its right means the points were written in the wrong order.
+        Faces touching the chain are judged by their normals, faces apart by the side they
+        stand on (which they approach from); when every face lies beyond the chain's ends (a
+        body that slides onto the tool later), against the end half-lines that continue it."""
         for cs in self.m.contacts:
             spec = self.m.foundations.get(cs.foundation)
             if spec is None:
@@ -923,7 +938,10 @@ class _Builder(ImportMixin):
             x = self.m.coords[rows]                                    # (f, a, 2)
             mid = x[:, 2] if rows.shape[1] == 3 else 0.5 * (x[:, 0] + x[:, 1])
             normal = right_normal(x[:, 1] - x[:, 0])                  # outward: body on the left
-            side = Foundation(spec.points, spec.name).side(mid, normal)
+            chain = Foundation(spec.points, spec.name)
+            side = chain.side(mid, normal)
+            if not side.any():
+                side = chain.side(mid, normal, extend=True)
             if (side < 0).sum() > (side > 0).sum():
                 self.pb.at(cs.where, f"the bodies of surface {cs.surface} lie on the right of "
                                      f"foundation {spec.name} (at {int((side < 0).sum())} of "
@@ -1139,7 +1157,7 @@ class _Builder(ImportMixin):
         self.m.axisymmetric = bool(kinds) and list(kinds)[0]
         if self.m.axisymmetric and len(self.m.coords):
             r = self.m.coords[:, 0]
-            tol = 1e-9 * max(np.ptp(self.m.coords), 1.0)
+            tol = 1e-9 * float(np.abs(self.m.coords).max())       # relative: any length unit
             used = np.unique(np.concatenate([g.conn().ravel() for g in self._solid_groups()] or [[]]).astype(int))
             neg = used[r[used] < -tol]
             for row in neg[:5]:
@@ -1368,6 +1386,15 @@ class _Builder(ImportMixin):
                               {pair.key: row.line for row, pair in pairs or ()})
             return
         self.step.controls.update({k: v for k, v in values.items() if k.upper() in given})
+
+
+#: largest coordinate magnitude: products of two coordinates (areas, Jacobians) must stay finite
+COORD_MAX = 1e150
+_COORD_WHY = "products of coordinates (areas, Jacobians) would overflow; choose another length unit"
+
+
+def _sane_coordinates(x) -> bool:
+    return bool(np.all(np.abs(np.asarray(x, float)) <= COORD_MAX))
 
 
 def _union(old: np.ndarray | None, new) -> np.ndarray:

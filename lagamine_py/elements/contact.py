@@ -242,8 +242,12 @@ class ContactGroup(Group):
         self.nw = self.nd + self.nt
         if self.nt:
             self.dofs = np.concatenate([self.dofs, np.broadcast_to(self.tool_dofs, (nf, self.nt))], axis=1)
-        # |d| below round-off of the coordinates is exact touching (a body meshed on the foundation)
-        self._touch_tol = 1e-12 * max(1.0, float(np.abs(self.coords0).max(initial=0.0)))
+        # |d| below round-off of the coordinates is exact touching (a body meshed on the
+        # foundation); relative to the coordinates' size, so a model in metres or nanometres
+        # behaves as one in millimetres (an absolute 1e-12 swallowed the whole penetration of
+        # a 1e-9 model: no contact stiffness, a "singular" matrix)
+        size = float(np.abs(self.coords0).max(initial=0.0))
+        self._touch_tol = 1e-12 * size
         xi, self.w = gauss_1d(self.nq)
         self.N, self.dN = line_shape(nfn, xi)                     # (q, a)
         # d P_i / d x_J and d t_i / d x_J per Gauss point, tiled over faces: (g, 2, nd)
@@ -259,7 +263,7 @@ class ContactGroup(Group):
         self._RAt = np.tile(np.einsum("ij,qjJ->qiJ", _R, At), (nf, 1, 1))
         self._x0 = np.ascontiguousarray(self.coords0[self.face_nodes])   # (f, a, 2) reference
         self._P0, self._t0 = self._at_points(self._x0)
-        self._jac_tol = 1e-14 * max(1.0, float(np.abs(self.coords0).max(initial=1.0)))
+        self._jac_tol = 1e-14 * size
         self._start_cache = None          # see _start_penetration
         self._kernel = False              # the fused kernel (use_kernels)
         self._kernel_wanted = False

@@ -17,7 +17,9 @@ class says :attr:`Writer.always` -- and calls, in this order:
   happened.
 
 Every writer flushes what it wrote before returning from a hook, so a killed run loses nothing
-that converged (``lagamine-py plugins --check`` replays a real run into a writer and checks that
+that converged (the controller saves the restart point *after* the writers took the increment:
+what a writer holds back past that point -- a step's last state kept for the end of the step --
+a kill loses for good, so write it when ``result.step_end`` says the step is done) (``lagamine-py plugins --check`` replays a real run into a writer and checks that
 no file it opened through ``open`` holds unflushed data after any hook).  Resuming a run (``lagamine-py run --restart``), writers are built with
 ``append=True``: they keep what is in the output directory and drop what the interrupted run
 wrote at or after the first resumed increment.
@@ -69,6 +71,7 @@ class IncrementResult:
     contacts: list[ContactPoints] = field(default_factory=list)
     foundations: dict[str, np.ndarray] = field(default_factory=dict)   # name -> (m,2) current points
     write_fields: bool = True     # this increment is due for field output (*OUTPUT FREQUENCY)
+    step_end: bool = False        # the last increment of its step (the step time reached)
     residual_history: list[float] = field(default_factory=list)
     loads: dict[str, float] = field(default_factory=dict)   # the step's loads reached: label -> value
     tools: dict[str, ToolState] = field(default_factory=dict)   # foundation name -> its state

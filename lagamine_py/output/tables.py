@@ -18,6 +18,7 @@ written after the restart point by the interrupted run -- are dropped (:func:`tr
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 from pathlib import Path
@@ -52,11 +53,19 @@ def trim_rows(path: Path, before: tuple[int, int]) -> None:
     """Keep the header and the rows of a CSV whose (step, increment) is below ``before``.
 
     A row with no readable increment (a failed attempt logged without one) counts as the last
-    of its step.  Rewritten atomically (tmp file + rename), and only when something is dropped.
+    of its step.  A last line without its end (a row torn by a kill) is dropped whatever it
+    holds, so that the resumed run does not glue its first row to it.  Rewritten atomically
+    (tmp file + rename), and only when something is dropped.
     """
     with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
+        text = fh.read()
+    torn = bool(text) and not text.endswith("\n")
+    if torn:
+        text = text[:text.rfind("\n") + 1]
+    rows = list(csv.reader(io.StringIO(text.replace("\0", ""), newline="")))
     if not rows:
+        if torn:
+            _rewrite(path, [])
         return
     i_step, i_inc = rows[0].index("step"), rows[0].index("increment")
 
@@ -67,11 +76,15 @@ def trim_rows(path: Path, before: tuple[int, int]) -> None:
             return math.inf
 
     kept = rows[:1] + [r for r in rows[1:] if (number(r, i_step), number(r, i_inc)) < tuple(before)]
-    if len(kept) == len(rows):
+    if len(kept) == len(rows) and not torn:
         return
+    _rewrite(path, kept)
+
+
+def _rewrite(path: Path, rows: list) -> None:
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "w", newline="") as fh:
-        csv.writer(fh, lineterminator="\n").writerows(kept)
+        csv.writer(fh, lineterminator="\n").writerows(rows)
     os.replace(tmp, path)
 
 

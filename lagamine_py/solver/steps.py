@@ -12,6 +12,12 @@ Group states are committed only on convergence.
 The run's messages (steps, Newton norms, cut-backs, the stop reason) go to the
 ``lagamine_py.solver`` logger (the STATUS writer copies them into ``OUT/<deck>.log``).
 
+The run claims its output directory first (:mod:`lagamine_py.core.outdir`): a lock (a second
+run into it is refused), the record of the deck that writes it, and the files of an earlier run
+cleared; a directory in use or holding another deck's results gives status 2 and nothing runs.
+A file that cannot be written (a full disk, no permission) stops the run with status 1 and a
+message; every increment converged before it is written.
+
 Ctrl-C (KeyboardInterrupt) stops the run between two operations: the writers are closed with
 status 130, every converged increment is written and the restart file holds the last one, so
 ``lagamine-py run --restart OUT`` goes on from there.  The :class:`Outcome` carries the lines a
@@ -20,6 +26,7 @@ pair at the last converged increment, and the wall time.
 """
 from __future__ import annotations
 
+import json
 import logging
 import sys
 import time as _time
@@ -30,7 +37,8 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import ConvergenceFailure, SingularMatrixError
-from ..core.exits import EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER
+from ..core.exits import EXIT_DECK, EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER
+from ..core import outdir as od
 from ..core.status import NONE, OPEN, SLIP, STICK
 from ..core.params import ParamError, validate_params
 from ..elements.base import StepContext
@@ -53,7 +61,8 @@ log = logging.getLogger("lagamine_py.solver")
 
 @dataclass
 class Outcome:
-    status: int        # 0 all steps done, 3 a step could not converge, 130 interrupted, 1 other
+    status: int        # 0 all steps done, 3 a step could not converge, 130 interrupted,
+                       # 2 the output directory refused or a restart of another deck, 1 other
     message: str
     summary: list[str] = field(default_factory=list)    # the lines a user reads at the end
 
@@ -86,26 +95,59 @@ def step_controls(step) -> dict[str, Any]:
 
 
 def run(model, outdir, writers=None, restart: bool = False, deck_path=None,
-        progress: bool = False, problem: Problem | None = None) -> Outcome:
+        progress: bool = False, problem: Problem | None = None,
+        overwrite: bool = False) -> Outcome:
     """Run every step of ``model``, writing into ``outdir``.
 
     ``writers``: a list of :class:`~lagamine_py.output.Writer` instances that observe every
     step (a script's own); by default the writers the steps' ``*OUTPUT, WRITERS=`` name (or
     the built-ins), each observing the steps that name it (:func:`run_writers`).
-    ``restart=True`` resumes from ``outdir/restart.npz``.  Typed failures give an
-    :class:`Outcome` with status 3; other exceptions close the writers (status 1) and propagate.
+    ``restart=True`` resumes from ``outdir/restart.npz``.  ``deck_path``: the deck of a model
+    without :attr:`~lagamine_py.model.Model.source` (built by a script).  ``overwrite``:
+    replace the results of another deck in ``outdir`` (see :mod:`lagamine_py.core.outdir`).
+
+    Typed failures give an :class:`Outcome` with status 3; an output directory in use or
+    holding another deck's results, or restart data of another deck, status 2; a file that
+    cannot be written, or restart data that cannot be read, status 1.  Other exceptions close
+    the writers (status 1) and propagate.
     """
     outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
-    if problem is None:
-        problem = build_problem(model)
-    if writers is None:
-        writers = run_writers(outdir, model, append=restart)
-    else:
-        writers = {f"#{k}": w for k, w in enumerate(writers)}
-        for w in writers.values():
-            w.append = w.append or restart
-    return Controller(model, problem, outdir, writers, deck_path, progress).run(restart)
+    deck = deck_identity(model, deck_path)
+    try:
+        hold = od.claim(outdir, deck, restart=restart, overwrite=overwrite)
+    except od.OutputDirError as exc:
+        return Outcome(EXIT_DECK, str(exc))
+    except OSError as exc:
+        return Outcome(EXIT_OTHER, f"cannot use the output directory {outdir}: {os_error_text(exc)}")
+    with hold:
+        if problem is None:
+            problem = build_problem(model)
+        if writers is None:
+            writers = run_writers(outdir, model, append=restart)
+        else:
+            writers = {f"#{k}": w for k, w in enumerate(writers)}
+            for w in writers.values():
+                w.append = w.append or restart
+        controller = Controller(model, problem, outdir, writers, deck, progress)
+        controller.notes = [f"{outdir}: {hold.note}"] if hold.note else []
+        return controller.run(restart)
+
+
+def deck_identity(model, deck_path=None) -> od.DeckIdentity:
+    """The identity of the deck a run computes: the model's source (path, digest, parameters)
+    when it was read from a deck, else ``deck_path`` (absolute) without a digest."""
+    src = model.source
+    if src is not None:
+        return od.DeckIdentity(src.path, model.name, src.digest, dict(src.parameters))
+    path = str(Path(deck_path).resolve()) if deck_path is not None else ""
+    return od.DeckIdentity(path, model.name or "")
+
+
+def os_error_text(exc: OSError) -> str:
+    """``[Errno 28] No space left on device: 'OUT/contact.csv'`` as a reader wants it:
+    ``OUT/contact.csv: No space left on device``."""
+    what = exc.strerror or str(exc)
+    return f"{exc.filename}: {what}" if exc.filename else what
 
 
 def run_writers(outdir: Path, model, append: bool = False) -> dict:
@@ -133,12 +175,12 @@ class Controller:
     ``#`` (given by a script) observes every step, the others the steps whose output names them
     and, if their class is ``always``, every step."""
 
-    def __init__(self, model, problem: Problem, outdir: Path, writers: dict, deck_path=None,
-                 progress: bool = False):
+    def __init__(self, model, problem: Problem, outdir: Path, writers: dict,
+                 deck: od.DeckIdentity | None = None, progress: bool = False):
         self.model, self.problem, self.outdir = model, problem, outdir
         self.writers = dict(writers)
         self.active = list(self.writers.values())      # the writers of the current step
-        self.deck_path = str(deck_path) if deck_path is not None else ""
+        self.deck = deck if deck is not None else deck_identity(model)
         self.total_time = float(sum(float(st.period) for st in model.steps))
         self.progress = Progress(enabled=progress, total=self.total_time)
         self.last_contacts: list = []     # the contact points of the last hand-out (summary)
@@ -156,6 +198,8 @@ class Controller:
         self.foundations = list(model.foundations)
         self.has_contact = CONTACT in problem.kinds
         self._kernel_text = None          # what the log last said of the solid kernel
+        self.notes: list[str] = []        # said in the log once the writers started
+        self.time_reached = 0.0           # total time of the last converged increment
         self.nodal = 2 * len(model.node_ids)      # the rotations of reference nodes follow
         self.energy = EnergyAccount(n) if tracks_energy(model) else None
         self._previous = None             # (u, states) before the last commit (energy)
@@ -164,17 +208,24 @@ class Controller:
     # -- the run ---------------------------------------------------------------------------
     def run(self, restart: bool) -> Outcome:
         self.wall0 = _time.perf_counter()
-        resume = self._load_restart() if restart else None
-        self.progress.start(self.time_offset + (resume or {}).get("t", 0.0))
-        for w in self.writers.values():
-            w.start_run()
-        advice_log = logging.getLogger("lagamine_py.advice")
-        for notice in self.problem.notices:
-            advice_log.info(notice)
-        for advice in self.problem.warnings:
-            advice_log.warning(advice)
-        status, message = EXIT_OTHER, "interrupted"
         try:
+            resume = self._load_restart() if restart else None
+        except rs.RestartError as exc:         # nothing was written: the writers never started
+            return Outcome(exc.status, str(exc))
+        self.progress.start(self.time_offset + (resume or {}).get("t", 0.0))
+        status, message = EXIT_OTHER, "interrupted"
+        started = []
+        try:
+            for w in self.writers.values():
+                w.start_run()
+                started.append(w)
+            advice_log = logging.getLogger("lagamine_py.advice")
+            for notice in self.problem.notices:
+                advice_log.info(notice)
+            for advice in self.problem.warnings:
+                advice_log.warning(advice)
+            for note in self.notes:                 # what claiming the directory did
+                log.warning(note)
             if resume is None:
                 self._hand_out_initial()
             first = resume["step"] if resume else 0
@@ -194,11 +245,40 @@ class Controller:
         except KeyboardInterrupt:
             status, message = EXIT_INTERRUPTED, self._interrupted_text()
             log.warning(message)
+        except OSError as exc:                  # a full disk, a file made read-only ...
+            status, message = EXIT_OTHER, self._write_failure_text(exc)
+            log.error(message)
+        except Exception as exc:                # a plugin that raised: say so, then propagate
+            status, message = EXIT_OTHER, f"stopped by an error: {type(exc).__name__}: {exc}"
+            raise
         finally:
             self.progress.end()
-            for w in self.writers.values():
-                w.close(status, message)
+            failure = self._close(started, status, message)
+            if failure is not None and status in (EXIT_OK, EXIT_DIVERGED):
+                status, message = EXIT_OTHER, self._write_failure_text(failure)
         return Outcome(status, message, self.summary())
+
+    def _close(self, writers, status, message) -> OSError | None:
+        """Close every writer that started, even when one fails (a full disk fails them all);
+        the first OSError is returned, any other exception raised once all are closed."""
+        first, other = None, None
+        for w in writers:
+            try:
+                w.close(status, message)
+            except OSError as exc:
+                first = first or exc
+            except Exception as exc:
+                other = other or exc
+        if other is not None:
+            raise other
+        return first
+
+    def _write_failure_text(self, exc: OSError) -> str:
+        done = (f"the files hold the increments that converged before (time {self.time_reached:g} "
+                f"reached)" if self.total_increments else "no increment converged")
+        restart = ((f"; once the cause is fixed go on with `lagamine-py run --restart "
+                    f"{self.outdir}`") if (self.outdir / rs.FILE).exists() else "")
+        return f"cannot write the results: {os_error_text(exc)}; {done}{restart}"
 
     def _time(self, t: float) -> float:
         """A total time as writers get it: :func:`round_time` on the run's time scale."""
@@ -236,8 +316,8 @@ class Controller:
             lines.append(f"tool {ts.name}{node}: force ({ts.force[0]:.6g}, {ts.force[1]:.6g}){force}, "
                          f"moment {ts.moment:.6g}; moved by ({ts.placement[0]:.6g}, "
                          f"{ts.placement[1]:.6g}), turned by {ts.placement[2]:.6g} rad")
-        pvd = sorted(self.outdir.glob("*.pvd"))
-        lines.append(f"results in {self.outdir}" + (f" (ParaView: {pvd[0]})" if pvd else ""))
+        pvd = self.outdir / f"{self.model.name or 'run'}.pvd"
+        lines.append(f"results in {self.outdir}" + (f" (ParaView: {pvd})" if pvd.exists() else ""))
         lines.append(f"wall time {_time.perf_counter() - self.wall0:.1f} s")
         return lines
 
@@ -265,7 +345,7 @@ class Controller:
             self._commit(conv, loads, free)
             t = stepper.accept(conv.iterations)
             self._hand_out(si, step, loads, stepper.inc, t, stepper.attempt, conv,
-                           stepper.cutbacks, stepper.period)
+                           stepper.cutbacks, stepper.period, stepper.finished)
             self._save_restart(si, loads, stepper, last)
         self._log_step_energy(si)
         self.reached = loads.reached(self.model)
@@ -352,10 +432,13 @@ class Controller:
             tools.predictor_context(problem, ctx, self.u, free.constrained, u_c), self.nodal)
         watched = {k: problem.group_names[k] for k in problem.indices(CONTACT)}
         log.info("  increment at step time %g, dt %g", t_new, dt)
-        conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
-                               settings, floor=FLOOR_FRACTION * self.force_ref, u_start=start,
-                               predicted=predicted,
-                               observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+        # an overflow becomes inf or NaN, which Newton reports as a typed failure (NotANumber:
+        # the increment is cut back), not a warning on the terminal
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
+                                   settings, floor=FLOOR_FRACTION * self.force_ref,
+                                   u_start=start, predicted=predicted,
+                                   observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
         conv.f_ext, conv.ctx = f_ext, ctx
         return conv
 
@@ -370,7 +453,7 @@ class Controller:
         self.total_increments += 1
 
     # -- output ----------------------------------------------------------------------------
-    def _hand_out(self, si, step, loads, inc, t, dt, conv, cutbacks, T) -> None:
+    def _hand_out(self, si, step, loads, inc, t, dt, conv, cutbacks, T, step_end=False) -> None:
         model = self.model
         u2 = self.u[:self.nodal].reshape(-1, 2)
         reaction2 = self.reaction[:self.nodal].reshape(-1, 2)
@@ -393,12 +476,13 @@ class Controller:
             cutbacks=cutbacks, coords0=model.coords, u=u2.copy(), reaction=reaction2.copy(),
             reactions_by_set=by_set, cells=self._cells(step.nlgeom),
             contacts=contacts, foundations=tools.foundation_points(model, place),
-            write_fields=(inc % freq == 0) or t >= T,
+            write_fields=(inc % freq == 0) or t >= T, step_end=bool(step_end),
             residual_history=list(conv.history),
             loads=driving_loads(model, step, loads, t), tools=tool_states, energy=energy)
         self.last_contacts = result.contacts
         self.last_tools = result.tools
         self._last_energy = result.energy
+        self.time_reached = result.time
         log.info("  converged: step %d increment %d, time %g, %d iterations, |R|/F %.3e",
                  si + 1, inc, result.time, conv.iterations, conv.residual)
         for w in self.active:
@@ -439,7 +523,9 @@ class Controller:
     def _failure_text(self, exc, free=None) -> str:
         if isinstance(exc, SingularMatrixError):
             text = exc.describe(names=self.model.dof_names())
-            if exc.matrix is not None and free is not None:
+            if exc.ill_conditioned and self.problem.warnings:     # the penalties' advice says why
+                text += "; " + "; ".join(self.problem.warnings)
+            elif exc.matrix is not None and free is not None:
                 why = tools.explain_singular(self.problem, exc.matrix, free.free, self.states)
                 if why:
                     text += f": {why}"
@@ -481,7 +567,9 @@ class Controller:
     # -- restart ---------------------------------------------------------------------------
     def _save_restart(self, si, loads: StepLoads, stepper: Stepper, last=None) -> None:
         state = stepper.state()
-        data = {"deck": np.array(self.deck_path), "ndof": np.array(self.problem.ndof),
+        data = {"deck": np.array(self.deck.path), "deck_digest": np.array(self.deck.digest),
+                "deck_parameters": np.array(json.dumps(self.deck.parameters)),
+                "ndof": np.array(self.problem.ndof),
                 "ngroups": np.array(len(self.problem.groups)), "step": np.array(si),
                 "t": np.array(state["t"]), "dt": np.array(state["dt"]),
                 "inc": np.array(state["inc"]),
@@ -498,6 +586,15 @@ class Controller:
 
     def _load_restart(self) -> dict:
         data = rs.load(self.outdir)
+        rs.check_deck(self.outdir, data, self.deck)
+        try:
+            return self._resume_from(data)
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise rs.RestartError(f"{self.outdir / rs.FILE} is damaged or incomplete "
+                                  f"({type(exc).__name__}: {exc}); run the deck again from the "
+                                  f"start") from None
+
+    def _resume_from(self, data: dict) -> dict:
         if int(data["ndof"]) != self.problem.ndof or int(data["ngroups"]) != len(self.problem.groups):
             raise rs.RestartError("the restart data does not fit the model (DOFs or groups differ)")
         self.u = data["u"].copy()
@@ -510,6 +607,7 @@ class Controller:
             self.energy.from_arrays(data)
         loads = StepLoads.from_arrays(data)
         si, t = int(data["step"]), float(data["t"])
+        self.time_reached = self._time(self.time_offset + t)
         log.info("restart from step %d at step time %g", si + 1, t)
         if t >= loads.period * (1 - 1e-12):     # saved at a step end: go on with the next step
             self.reached = loads.reached(self.model)
