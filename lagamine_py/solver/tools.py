@@ -12,12 +12,15 @@
   increment of size ``dt`` the normal traction is ``p_s = c (d_end - d_start) / dt``, i.e. a
   spring ``kn = FACTOR KP T / dt`` on the approach of the increment, ramped down linearly over
   the step (times ``1 - t_start / T``: full at the step start, ``FACTOR KP`` in the last
-  increment, whatever its size) and acting only on open points near the foundation (see
-  :mod:`lagamine_py.elements.contact`).  The tangential coefficient is ``TANGENTIAL`` times the
-  normal one.  A body or tool that touches at a point and is pushed by a force approaches at a
-  finite speed until its contact closes; once closed, the penalty holds it and the damping of
-  the points still open only resists their (slowing) approach.  Its energy is dissipated: the
-  controller logs it at every step end against the work of the loads.
+  increment, whatever its size) and acting on the points near the foundation (``RANGE``,
+  default a tenth of the surface's median face length): the normal one weighted from 1 in
+  contact down to 0 at the range, the tangential one on open points only, both continuous as a
+  point closes (see :mod:`lagamine_py.elements.contact`).  The tangential coefficient is
+  ``TANGENTIAL`` times the normal one.  A body or tool that touches at a point and is pushed by
+  a force approaches at a finite speed until its contact closes; once closed, the penalty holds
+  it (the normal damping, ``kn << KP``, then only resists the change of the penetration) and the
+  damping of the points still open resists their slowing approach.  Its energy is dissipated:
+  the controller logs it at every step end against the work of the loads (a warning above 1 %).
 * :func:`predictor_context` -- the placements the first iterate sees: a tool whose DOFs are all
   prescribed moves to its prescribed placement, and when every foundation translates alike the
   bodies are shifted with them (:func:`lagamine_py.solver.predictor.foundation_shift`).
