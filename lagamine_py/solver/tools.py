@@ -227,7 +227,10 @@ def explain_singular(problem, data: np.ndarray, free_dofs: np.ndarray, states: l
     K = problem.pattern.matrix(np.asarray(data, float))
     free_mask = np.zeros(K.shape[0], bool)
     free_mask[np.asarray(free_dofs, np.int64)] = True
-    motions = _free_modes(problem, K, free_mask)
+    try:
+        motions = _free_modes(problem, K, free_mask)
+    except (ValueError, np.linalg.LinAlgError):     # a NaN tangent, an SVD that fails: no words
+        return ""
     if not motions:
         return ""
     model = problem.model
