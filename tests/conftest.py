@@ -11,7 +11,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DECKS = sorted((ROOT / "decks").glob("*.dat"))
 #: the writers of a regression run: the tables (no VTK: not compared)
-TABLE_WRITERS = ("CONTACT", "REACTIONS", "STATUS", "DISPLACEMENTS")
+TABLE_WRITERS = ("CONTACT", "REACTIONS", "STATUS", "DISPLACEMENTS", "TOOLS", "ENERGY")
 # The solid-element kernel of tools/make_references.py.  The numba kernel differs from NumPy by
 # round-off (1e-14 relative), which is enough to turn contact decisions in press_slide and
 # tube_hydroform (other increments, other histories): tests/test_kernel_twins.py compares them.
