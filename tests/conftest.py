@@ -14,7 +14,7 @@ DECKS = sorted((ROOT / "decks").glob("*.dat"))
 TABLE_WRITERS = ("CONTACT", "REACTIONS", "STATUS", "DISPLACEMENTS", "TOOLS", "ENERGY")
 # The solid-element kernel of tools/make_references.py.  The numba kernel differs from NumPy by
 # round-off (1e-14 relative), which is enough to turn contact decisions in press_slide and
-# tube_hydroform (other increments, other histories): tests/test_kernel_twins.py compares them.
+# tube_crimp (other increments, other histories): tests/test_kernel_twins.py compares them.
 REFERENCE_KERNEL = "NUMPY"
 
 

@@ -66,9 +66,9 @@ def test_nodal_values_lie_within_the_gauss_values_around_the_node(deck, deck_run
 
 
 def test_tube_von_mises_overshoot_is_gone(deck_run):
-    """tube_hydroform: extrapolated and averaged, the nodal von Mises stress exceeded every
+    """tube_crimp: extrapolated and averaged, the nodal von Mises stress exceeded every
     Gauss value around the node; recovered, its maximum is at most the largest Gauss value."""
-    got = deck_run(next(d for d in DECKS if d.stem == "tube_hydroform"))
+    got = deck_run(next(d for d in DECKS if d.stem == "tube_crimp"))
     r = got.results[-1]
     fields = [f for f in body_fields(r.cells, lambda code: True) if f[0] == "von_mises"]
     plain, _ = recovered(len(r.coords0), r.cells, fields, bounded=False)

@@ -3,7 +3,7 @@
 Usage (from anywhere)::
 
     python tools/make_references.py                 # every deck at the top level of decks/
-    python tools/make_references.py press_slide hertz.dat decks/tube_hydroform.dat
+    python tools/make_references.py press_slide hertz.dat decks/tube_crimp.dat
 
 Each deck is run by ``python -m lagamine_py run DECK -o TMP -q --kernel NUMPY`` (the NumPy
 solid kernel, the reference implementation) in a fresh process, from the repository root (so

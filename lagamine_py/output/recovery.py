@@ -16,7 +16,7 @@ the average of the extrapolations of a smooth field lies within the patch and no
 on the Lamé cylinder (8 Q8AX across the wall) the interior nodal stresses are those of plain
 extrapolation to the last digit; at the walls, where the exact stress peaks beyond every Gauss
 point, the hoop stress reads 163.3 instead of 166.7 (plain extrapolation: 167.3).  Extrapolated
-and averaged without step 3, ``tube_hydroform``'s nodal von Mises stress (then computed from the
+and averaged without step 3, ``tube_crimp``'s nodal von Mises stress (then computed from the
 averaged components) reached 606 MPa where the largest Gauss value was 290 MPa, and
 press-slide's nodal PEEQ went down to -4.7e-11.
 
