@@ -1,0 +1,106 @@
+"""Two deformable bodies through the deck (``*CONTACT, MASTER=``): validation, the contact
+patch test, the two-body Coulomb block; closed forms in the docstrings of each test."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lagamine_py.deck import load_deck
+from lagamine_py.deck.errors import DeckError
+from runner import run_deck
+
+BLOCKS = """*MESH, NAME=LOW, TYPE={low}, X0=0, Y0=0, LX=30, LY=6, NX={nxl}, NY=2
+*MESH, NAME=UP, TYPE=Q8PE, X0={x0}, Y0=6, LX={lx}, LY=8, NX={nxu}, NY=2
+*MATERIAL, NAME=STEEL, LAW=ELASTIC
+E=200000, NU=0.3
+*SOLID, ELSET=LOW, MATERIAL=STEEL
+*SOLID, ELSET=UP, MATERIAL=STEEL
+*CONTACT LAW, NAME=DRY, TYPE=COULOMB
+KP=1e6, KT=1e6, PHI=0.3, B={b}
+*CONTACT, SURFACE=UP_BOTTOM, {target}, LAW=DRY
+"""
+PRESS = """*STEP, NAME=PRESS
+*STATIC
+1, 1
+*BOUNDARY
+LOW_BOTTOM, 2, 2, 0
+LOW_LEFT, 1, 1, 0
+*DLOAD
+UP_TOP, P, 100
+*END STEP
+"""
+
+
+def _deck(tmp_path, name="d.dat", low="Q8PE", nxl=3, nxu=6, x0=0, lx=30, b=0, target="MASTER=LOW_TOP",
+          steps=PRESS):
+    path = tmp_path / name
+    path.write_text(BLOCKS.format(low=low, nxl=nxl, nxu=nxu, x0=x0, lx=lx, b=b, target=target) + steps)
+    return path
+
+
+@pytest.mark.parametrize("target,message", [
+    ("MASTER=UP_BOTTOM", "its own master"),
+    ("MASTER=NOPE", "NOPE"),
+    ("MASTER=LOW_TOP, FOUNDATION=F", "not both"),
+    ("LAW2=X", "one of FOUNDATION="),
+    ("FOUNDATION=F, SEARCH=2", None),
+])
+def test_master_is_validated(tmp_path, target, message):
+    text = "*FOUNDATION, NAME=F\n-1, 0\n10, 0\n40, 0\n" if "FOUNDATION=F" in target else ""
+    path = tmp_path / "d.dat"
+    body = BLOCKS.format(low="Q8PE", nxl=3, nxu=6, x0=0, lx=30, b=0, target=target)
+    path.write_text(text + body.replace(", LAW2=X", "") + PRESS)
+    with pytest.raises(DeckError) as exc:
+        load_deck(path)
+    assert (message or "SEARCH= goes with MASTER=") in str(exc.value)
+
+
+def test_master_needs_three_node_faces(tmp_path):
+    with pytest.raises(DeckError) as exc:
+        load_deck(_deck(tmp_path, low="Q4PE"))
+    assert "3-node faces" in str(exc.value)
+
+
+def _stresses(result):
+    return np.concatenate([cb.stress.reshape(-1, 4) for cb in result.cells])
+
+
+def test_patch_test_nested_non_matching(tmp_path):
+    """A uniform pressure through a flat non-matching interface (3 master faces, 6 slave faces,
+    each slave face within one master face): the exact solution is uniform, sigma_yy = -p in
+    both bodies, contact pressure p, no shear, and the one-pass element reproduces it to
+    round-off."""
+    _, cap, _ = run_deck(_deck(tmp_path), tmp_path / "out")
+    r = cap.results[-1]
+    cp = r.contacts[0]
+    s = _stresses(r)
+    assert np.abs(cp.p - 100.0).max() <= 1e-8 * 100
+    assert np.abs(cp.tau).max() <= 1e-8 * 100
+    assert np.abs(s[:, 1] + 100.0).max() <= 1e-8 * 100
+    assert np.abs(s[:, [0, 3]]).max() <= 1e-8 * 100
+    # action = reaction: the load on the top goes to the lower body's support whole
+    assert r.reactions_by_set["LOW_BOTTOM"][1] == pytest.approx(100.0 * 30, rel=1e-12)
+
+
+PUSH = PRESS + """*STEP, NAME=PUSH
+*STATIC
+0.1, 1, 1e-4, 0.1
+*BOUNDARY
+UP_LEFT, 1, 1, 0.05
+*END STEP
+"""
+
+
+@pytest.mark.parametrize("b", [0.0, 5.0])
+def test_two_body_coulomb_block(tmp_path, b):
+    """An upper block (20 wide) pressed on a lower one by 100 MPa and pushed sideways until it
+    slides: the force that holds it is T = phi P + B A, P = 100 * 20, A = 20 (Coulomb)."""
+    path = _deck(tmp_path, nxl=3, nxu=8, x0=5, lx=20, b=b, steps=PUSH)
+    _, cap, _ = run_deck(path, tmp_path / "out")
+    r = cap.results[-1]
+    cp = r.contacts[0]
+    P, A = 100.0 * 20, 20.0
+    assert cp.P == pytest.approx(P, rel=1e-6)
+    assert abs(cp.T) == pytest.approx(0.3 * P + b * A, rel=1e-6)
+    assert abs(r.reactions_by_set["UP_LEFT"][0]) == pytest.approx(0.3 * P + b * A, rel=1e-6)
+    assert (np.asarray(cp.status) == 2).all()                          # all slip
