@@ -104,3 +104,22 @@ def test_two_body_coulomb_block(tmp_path, b):
     assert abs(cp.T) == pytest.approx(0.3 * P + b * A, rel=1e-6)
     assert abs(r.reactions_by_set["UP_LEFT"][0]) == pytest.approx(0.3 * P + b * A, rel=1e-6)
     assert (np.asarray(cp.status) == 2).all()                          # all slip
+
+
+def test_hertz_two_cylinders(tmp_path):
+    """decks/hertz_two_body.dat: steel on aluminium cylinders; a and p0 against Hertz with the
+    pair's E* and R (Johnson 4.2) within 1 % (the HERTZ check of the deck)."""
+    from pathlib import Path
+
+    from lagamine_py.checks import evaluate_checks
+    from lagamine_py.solver import run
+
+    deck = Path(__file__).resolve().parents[1] / "decks" / "hertz_two_body.dat"
+    model = load_deck(deck)
+    run(model, tmp_path / "out", deck_path=deck)
+    (res,) = evaluate_checks(model.checks, tmp_path / "out")
+    assert res["message"] == ""
+    assert res["errors"]["a"] < 0.01 and res["errors"]["p0"] < 0.01
+    # E* and R of the deck's check are those of the pair
+    E1, n1, E2, n2 = 200000.0, 0.3, 70000.0, 0.33
+    assert 1.0 / ((1 - n1**2) / E1 + (1 - n2**2) / E2) == pytest.approx(57870.4, rel=1e-6)
