@@ -123,3 +123,50 @@ def test_hertz_two_cylinders(tmp_path):
     # E* and R of the deck's check are those of the pair
     E1, n1, E2, n2 = 200000.0, 0.3, 70000.0, 0.33
     assert 1.0 / ((1 - n1**2) / E1 + (1 - n2**2) / E2) == pytest.approx(57870.4, rel=1e-6)
+
+
+PUNCH = """*MESH, NAME=PUNCH, TYPE=Q8PE, X0=0, Y0=10, LX=10, LY=5, NX=8, NY=4
+*MATERIAL, NAME=STEEL, LAW=ELASTIC
+E=200000, NU=0.3
+*SOLID, ELSET=PUNCH, MATERIAL=STEEL
+*CONTACT LAW, NAME=DRY, TYPE=COULOMB
+KP=1e7, KT=1e7, PHI=0.5
+{body}
+*STEP, NAME=PRESS
+*STATIC
+1, 1
+*BOUNDARY
+PUNCH_LEFT, 1, 1, 0
+{bc}
+*DLOAD
+PUNCH_TOP, P, 50
+*END STEP
+"""
+RIGID = ("*FOUNDATION, NAME=FLAT\n-10, 10\n10, 10\n30, 10\n"
+         "*CONTACT, SURFACE=PUNCH_BOTTOM, FOUNDATION=FLAT, LAW=DRY", "")
+ELASTIC = ("*MESH, NAME=BASE, TYPE=Q8PE, X0=0, Y0=0, LX=30, LY=10, NX=4, NY=4\n"
+           "*MATERIAL, NAME=HARD, LAW=ELASTIC\nE={E}, NU=0.3\n*SOLID, ELSET=BASE, MATERIAL=HARD\n"
+           "*CONTACT, SURFACE=PUNCH_BOTTOM, MASTER=BASE_TOP, LAW=DRY",
+           "BASE_LEFT, 1, 1, 0\nBASE_BOTTOM, 2, 2, 0")
+
+
+def test_flat_punch_tends_to_the_rigid_foundation(tmp_path):
+    """An elastic punch (half, frictional: the pressure peaks at its edge) pressed on an elastic
+    base block whose Young's modulus grows 10, 100, 1000 times the punch's: the contact pressure
+    at every Gauss point tends to that of the same punch on a rigid flat, the difference falling
+    like 1/E (the base's compliance)."""
+    def pressures(body, bc, name):
+        path = tmp_path / f"{name}.dat"
+        path.write_text(PUNCH.format(body=body, bc=bc))
+        _, cap, _ = run_deck(path, tmp_path / name)
+        return cap.results[-1].contacts[0].p
+
+    p_rigid = pressures(*RIGID, "rigid")
+    assert p_rigid.max() > 1.2 * p_rigid.min() > 0        # not uniform: the test can tell
+    errs = []
+    for k in (10, 100, 1000):
+        p = pressures(ELASTIC[0].format(E=2e5 * k), ELASTIC[1], f"k{k}")
+        errs.append(np.abs(p - p_rigid).max() / p_rigid.max())
+    assert errs[0] > errs[1] > errs[2]
+    assert errs[1] < 0.2 * errs[0] and errs[2] < 0.2 * errs[1]
+    assert errs[2] < 0.01
