@@ -185,8 +185,8 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
                                  _name("LAW", True), Param("GAUSS", int, 3, choices=(2, 3)),
                                  Param("SEARCH", float, None, gt=0.0, unit="length",
                                        doc="with MASTER: each slave face couples to the master faces "
-                                           "within this distance (default the larger median face "
-                                           "length); re-paired before every increment")),
+                                           "within this distance (default three times the larger "
+                                           "median face length); re-paired before every increment")),
             doc="contact elements on a surface against a foundation or a master surface"),
     Keyword("AMPLITUDE", "model", (_name("NAME", True),),
             Data("rows", (Col("time"), Col("value")), repeat=2, min_lines=1, doc="`time, value` pairs"),

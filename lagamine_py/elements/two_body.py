@@ -172,8 +172,8 @@ class TwoBodyGroup(ContactGroup):
         :class:`~lagamine_py.elements.contact.ContactGroup`.
     master_faces : (m, 3) node rows of the master's faces.
     master_name : str, the master surface (for messages).
-    search : float or None, the window's reach (see the module doc); default the larger median
-        face length of the two surfaces.
+    search : float or None, the window's reach (see the module doc); default three times the
+        larger median face length of the two surfaces.
     """
 
     def __init__(self, name: str, face_nodes, elements, faces, coords0, master_faces,
@@ -188,7 +188,7 @@ class TwoBodyGroup(ContactGroup):
         if search is None:
             def median_length(x):
                 return float(np.median(np.linalg.norm(x[:, 1] - x[:, 0], axis=1))) if len(x) else 0.0
-            search = max(median_length(self._x0), median_length(self.master._x0))
+            search = 3.0 * max(median_length(self._x0), median_length(self.master._x0))
         self.search = float(search)
         self.window = None
         self.refresh(np.zeros_like(self.coords0))
