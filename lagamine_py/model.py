@@ -97,11 +97,22 @@ class FoundationSpec:
 
 @dataclass
 class ContactSpec:
+    """A ``*CONTACT`` pair: the slave ``surface`` against a rigid ``foundation`` or, with
+    ``master`` (``foundation`` then ""), against another surface's faces
+    (:mod:`lagamine_py.elements.two_body`; ``search`` its window's reach, None: default)."""
     surface: str
     foundation: str
     law: str
     gauss: int = 3
     where: Where | None = None
+    master: str | None = None
+    search: float | None = None
+
+    @property
+    def target(self) -> str:
+        """What the surface contacts: the master surface or the foundation (the pair's name
+        is ``surface->target``)."""
+        return self.master or self.foundation
 
 
 @dataclass

@@ -835,20 +835,34 @@ class _Builder(ImportMixin):
 
     def _kw_contact(self, blk, params, data):
         ok = True
+        target = "MASTER" if params["MASTER"] is not None else "FOUNDATION"
+        if (params["MASTER"] is None) == (params["FOUNDATION"] is None):
+            self.pb.at(blk, "give one of FOUNDATION= (a rigid foundation) and MASTER= (a surface of "
+                            "a deformable body)" + (", not both" if params["MASTER"] else ""))
+            return
+        if params["SEARCH"] is not None and target != "MASTER":
+            self.pb.at(blk, "SEARCH= goes with MASTER= (the pairing of two deformable bodies)")
+            ok = False
         for key, kind, table in (("SURFACE", "SURFACE", self.m.surfaces),
-                                 ("FOUNDATION", "FOUNDATION", self.m.foundations),
+                                 (target, "SURFACE" if target == "MASTER" else "FOUNDATION",
+                                  self.m.surfaces if target == "MASTER" else self.m.foundations),
                                  ("LAW", "CONTACT LAW", self.m.contact_laws)):
             if params[key] not in table:
                 self._missing(blk.file, blk.line, blk.keyword, kind, params[key], table, f"{key}={params[key]}: ")
                 ok = False
+        if ok and params["MASTER"] == params["SURFACE"]:
+            self.pb.at(blk, f"MASTER={params['MASTER']} is the SURFACE itself: a surface cannot be "
+                            "its own master")
+            ok = False
         if ok:
             for c in self.m.contacts:
-                if (c.surface, c.foundation) == (params["SURFACE"], params["FOUNDATION"]):
-                    self.pb.at(blk, f"contact pair {c.surface}->{c.foundation} is already defined (line "
+                if (c.surface, c.target) == (params["SURFACE"], params[target]):
+                    self.pb.at(blk, f"contact pair {c.surface}->{c.target} is already defined (line "
                                     f"{c.where.line}); change its law in a step with *CHANGE CONTACT LAW")
                     return
-            self.m.contacts.append(ContactSpec(params["SURFACE"], params["FOUNDATION"], params["LAW"],
-                                               params["GAUSS"], blk.where))
+            self.m.contacts.append(ContactSpec(params["SURFACE"], params["FOUNDATION"] or "",
+                                               params["LAW"], params["GAUSS"], blk.where,
+                                               master=params["MASTER"], search=params["SEARCH"]))
 
     def _kw_amplitude(self, blk, params, rows):
         name = params["NAME"]
@@ -902,6 +916,8 @@ class _Builder(ImportMixin):
         self._assemble_blocks()
         self._energy_laws()
         if not self.pb:
+            self._master_surfaces()
+        if not self.pb:
             self._foundation_sides()
 
     def _energy_laws(self) -> None:
@@ -924,6 +940,31 @@ class _Builder(ImportMixin):
             except NotImplementedError as exc:
                 self.pb.at(checks[0]["where"], f"TYPE=ENERGY: {exc} (defined at line {where.line})")
 
+    def _master_surfaces(self) -> None:
+        """A MASTER= surface must have 3-node faces (Q8, T6: each face is a parabolic arc) and
+        share no face with its slave surface."""
+        for cs in self.m.contacts:
+            if cs.master is None:
+                continue
+            try:
+                rows, elements, faces = surface_faces(self.m, cs.master)
+                _, slave_el, slave_faces = surface_faces(self.m, cs.surface)
+            except (KeyError, ValueError) as exc:
+                self.pb.at(cs.where, str(exc).strip("'\""))
+                continue
+            if rows.shape[1] != 3:
+                self.pb.at(cs.where, f"MASTER={cs.master}: its faces have {rows.shape[1]} nodes; a "
+                                     f"master surface needs 3-node faces (Q8, T6 elements), whose "
+                                     f"parabolic arcs the slave's points project on")
+                continue
+            both = set(zip(elements.tolist(), faces.tolist())) & set(zip(slave_el.tolist(),
+                                                                          slave_faces.tolist()))
+            if both:
+                e, f = sorted(both)[0]
+                self.pb.at(cs.where, f"SURFACE={cs.surface} and MASTER={cs.master} share "
+                                     f"{len(both)} face(s) (S{f} of element {e}): a face cannot "
+                                     f"touch itself")
+
     def _foundation_sides(self) -> None:
         """Each foundation must have its contact bodies on its left (the direction of travel of
         its points): a body on its right means the points were written in the wrong order.
@@ -931,7 +972,7 @@ class _Builder(ImportMixin):
         stand on (which they approach from); when every face lies beyond the chain's ends (a
         body that slides onto the tool later), against the end half-lines that continue it."""
         for cs in self.m.contacts:
-            spec = self.m.foundations.get(cs.foundation)
+            spec = None if cs.master else self.m.foundations.get(cs.foundation)
             if spec is None:
                 continue
             rows, _, _ = surface_faces(self.m, cs.surface)
@@ -1328,7 +1369,7 @@ class _Builder(ImportMixin):
             self._missing(blk.file, blk.line, blk.keyword, "CONTACT LAW", law, self.m.contact_laws,
                           f"LAW={law}: ")
             return
-        pairs = [f"{c.surface}->{c.foundation}" for c in self.m.contacts]
+        pairs = [f"{c.surface}->{c.target}" for c in self.m.contacts]
         pair = f"{surface}->{foundation}"
         if pair not in pairs:
             self.pb.at(blk, f"no contact pair {pair} (SURFACE={surface}, FOUNDATION={foundation}): "
@@ -1343,12 +1384,12 @@ class _Builder(ImportMixin):
             self.pb.at(blk, f"step {self.step.name} has two *CONTACT STABILIZATION")
             return
         surface, foundation = params["SURFACE"], params["FOUNDATION"]
-        pairs = tuple(f"{c.surface}->{c.foundation}" for c in self.m.contacts
-                      if surface in (None, c.surface) and foundation in (None, c.foundation))
+        pairs = tuple(f"{c.surface}->{c.target}" for c in self.m.contacts
+                      if surface in (None, c.surface) and foundation in (None, c.target))
         if not pairs:
             self.pb.at(blk, "no contact pair to stabilise" + (
                 f" (SURFACE={surface}, FOUNDATION={foundation}; the pairs are "
-                f"{', '.join(f'{c.surface}->{c.foundation}' for c in self.m.contacts) or 'none'})"
+                f"{', '.join(f'{c.surface}->{c.target}' for c in self.m.contacts) or 'none'})"
                 if surface or foundation else ": the model has no *CONTACT"))
             return
         self.step.stabilisation = Stabilisation(params["FACTOR"], params["TANGENTIAL"], params["RANGE"],

@@ -177,9 +177,17 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
             doc="rigid foundation: parabolic arcs through points (1,2,3), (3,4,5), ..."),
     Keyword("CONTACT LAW", "model", (_name("NAME", True), _name("TYPE", True, doc="contact law plugin")),
             _PAIRS, doc="contact law: the plugin's parameters"),
-    Keyword("CONTACT", "model", (_name("SURFACE", True), _name("FOUNDATION", True),
-                                 _name("LAW", True), Param("GAUSS", int, 3, choices=(2, 3))),
-            doc="contact elements on a surface against a foundation"),
+    Keyword("CONTACT", "model", (_name("SURFACE", True),
+                                 _name("FOUNDATION", doc="the rigid foundation (or MASTER=)"),
+                                 _name("MASTER", doc="a surface of another deformable body, whose 3-node "
+                                                     "faces the SURFACE's Gauss points project on "
+                                                     "(instead of FOUNDATION=)"),
+                                 _name("LAW", True), Param("GAUSS", int, 3, choices=(2, 3)),
+                                 Param("SEARCH", float, None, gt=0.0, unit="length",
+                                       doc="with MASTER: each slave face couples to the master faces "
+                                           "within this distance (default three times the larger "
+                                           "median face length); re-paired before every increment")),
+            doc="contact elements on a surface against a foundation or a master surface"),
     Keyword("AMPLITUDE", "model", (_name("NAME", True),),
             Data("rows", (Col("time"), Col("value")), repeat=2, min_lines=1, doc="`time, value` pairs"),
             doc="piecewise linear load curve"),

@@ -137,7 +137,7 @@ class ContactPoints:
 
 class Group:
     """Base of everything the solver assembles.  ``dofs`` (e, nd) global DOF numbers and ``ids``
-    (e,) labels for messages, both fixed for the run."""
+    (e,) labels for messages, fixed for the run unless :meth:`refresh` says otherwise."""
 
     dofs: np.ndarray
     ids: np.ndarray
@@ -157,6 +157,13 @@ class Group:
     def use_kernels(self, on: bool) -> None:
         """Use the numba kernels where the group has them (``on``) or the NumPy reference.
         Default: the group has none."""
+
+    def refresh(self, u: np.ndarray) -> bool:
+        """Before an increment, from the converged nodal displacements ``u`` (n, 2): re-pair
+        what the group couples (two-body contact: the master faces each slave face may reach)
+        and return True when ``dofs`` changed, so the solver rebuilds the sparsity pattern.
+        Default: ``dofs`` are fixed for the run (False)."""
+        return False
 
     def compute_into(self, u_new, u_old, state, ctx, tangent, data, f_out, positions) -> GroupResult:
         """:meth:`compute` through a fused kernel that adds the tangent into the CSR ``data`` at

@@ -17,6 +17,7 @@ from .. import kernels, registry
 from ..core.errors import CutbackRequest, GroupFailure
 from ..elements.contact import ContactGroup
 from ..elements.edges import PressureGroup, surface_faces
+from ..elements.two_body import TwoBodyGroup
 from ..foundation import Foundation
 from .pattern import Pattern
 
@@ -126,6 +127,17 @@ class Problem:
             data = self.pattern.assemble_data([None if f else r.K for f, r in zip(fused, results)],
                                               out=data)
         return Evaluation(f_int, data, [r.state for r in results], scale, results)
+
+    def refresh(self, u: np.ndarray) -> bool:
+        """Let every group re-pair from the displacements ``u`` (ndof,) before an increment
+        (:meth:`~lagamine_py.elements.base.Group.refresh`); when one changed its ``dofs``, the
+        pattern is rebuilt and True returned (the caller rebuilds what it derived from it)."""
+        n2 = u.size if self.nodal < 0 else self.nodal
+        u2 = u[:n2].reshape(-1, 2)
+        changed = [g.refresh(u2) for g in self.groups]
+        if any(changed):
+            self.pattern = Pattern(self.ndof, [g.dofs for g in self.groups])
+        return any(changed)
 
     def placement(self, name: str, u: np.ndarray) -> np.ndarray:
         """(3,) placement (dx, dy, theta) of the tool ``name`` (with a reference node) in ``u``."""
@@ -249,15 +261,23 @@ def build_problem(model) -> Problem:
     for cs in model.contacts:
         surf = _surface(model, cs.surface)
         face_nodes, elements, faces = surface_faces(model, surf.name)
-        fname = _key(model.foundations, cs.foundation)
-        name = f"{surf.name}->{fname}"
         law_name = _key(model.contact_laws, cs.law)
         claw = contact_laws[law_name]
         initial_laws[len(groups)] = law_name
-        groups.append(ContactGroup(name, face_nodes, elements, faces, model.coords,
-                                   foundations[fname], fname, claw, cs.gauss,
-                                   model.axisymmetric, _surface_thickness(model, surf, lookup),
-                                   tools.get(fname)))
+        if cs.master is not None:             # two deformable bodies (elements.two_body)
+            master = _surface(model, cs.master)
+            name = f"{surf.name}->{master.name}"
+            groups.append(TwoBodyGroup(name, face_nodes, elements, faces, model.coords,
+                                       surface_faces(model, master.name)[0], master.name, claw,
+                                       cs.gauss, model.axisymmetric,
+                                       _surface_thickness(model, surf, lookup), cs.search))
+        else:
+            fname = _key(model.foundations, cs.foundation)
+            name = f"{surf.name}->{fname}"
+            groups.append(ContactGroup(name, face_nodes, elements, faces, model.coords,
+                                       foundations[fname], fname, claw, cs.gauss,
+                                       model.axisymmetric, _surface_thickness(model, surf, lookup),
+                                       tools.get(fname)))
         advice.extend(penalty_advice(name, claw, face_nodes, elements, model, laws, lookup))
         kinds.append(CONTACT)
         names.append(name)

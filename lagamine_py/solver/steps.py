@@ -339,6 +339,8 @@ class Controller:
         free = FreeDofs(self.problem.pattern, loads.constrained)
         self._start_step(si, step, loads, controls)
         while not stepper.finished:
+            if self.problem.refresh(self.u):      # two-body contact re-paired: a new pattern
+                free = FreeDofs(self.problem.pattern, loads.constrained)
             conv = self._increment(si, step, loads, free, solver, settings, controls, stepper,
                                    last)
             last = (conv.u - self.u, stepper.attempt)

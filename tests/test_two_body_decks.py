@@ -1,0 +1,172 @@
+"""Two deformable bodies through the deck (``*CONTACT, MASTER=``): validation, the contact
+patch test, the two-body Coulomb block; closed forms in the docstrings of each test."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lagamine_py.deck import load_deck
+from lagamine_py.deck.errors import DeckError
+from runner import run_deck
+
+BLOCKS = """*MESH, NAME=LOW, TYPE={low}, X0=0, Y0=0, LX=30, LY=6, NX={nxl}, NY=2
+*MESH, NAME=UP, TYPE=Q8PE, X0={x0}, Y0=6, LX={lx}, LY=8, NX={nxu}, NY=2
+*MATERIAL, NAME=STEEL, LAW=ELASTIC
+E=200000, NU=0.3
+*SOLID, ELSET=LOW, MATERIAL=STEEL
+*SOLID, ELSET=UP, MATERIAL=STEEL
+*CONTACT LAW, NAME=DRY, TYPE=COULOMB
+KP=1e6, KT=1e6, PHI=0.3, B={b}
+*CONTACT, SURFACE=UP_BOTTOM, {target}, LAW=DRY
+"""
+PRESS = """*STEP, NAME=PRESS
+*STATIC
+1, 1
+*BOUNDARY
+LOW_BOTTOM, 2, 2, 0
+LOW_LEFT, 1, 1, 0
+*DLOAD
+UP_TOP, P, 100
+*END STEP
+"""
+
+
+def _deck(tmp_path, name="d.dat", low="Q8PE", nxl=3, nxu=6, x0=0, lx=30, b=0, target="MASTER=LOW_TOP",
+          steps=PRESS):
+    path = tmp_path / name
+    path.write_text(BLOCKS.format(low=low, nxl=nxl, nxu=nxu, x0=x0, lx=lx, b=b, target=target) + steps)
+    return path
+
+
+@pytest.mark.parametrize("target,message", [
+    ("MASTER=UP_BOTTOM", "its own master"),
+    ("MASTER=NOPE", "NOPE"),
+    ("MASTER=LOW_TOP, FOUNDATION=F", "not both"),
+    ("LAW2=X", "one of FOUNDATION="),
+    ("FOUNDATION=F, SEARCH=2", None),
+])
+def test_master_is_validated(tmp_path, target, message):
+    text = "*FOUNDATION, NAME=F\n-1, 0\n10, 0\n40, 0\n" if "FOUNDATION=F" in target else ""
+    path = tmp_path / "d.dat"
+    body = BLOCKS.format(low="Q8PE", nxl=3, nxu=6, x0=0, lx=30, b=0, target=target)
+    path.write_text(text + body.replace(", LAW2=X", "") + PRESS)
+    with pytest.raises(DeckError) as exc:
+        load_deck(path)
+    assert (message or "SEARCH= goes with MASTER=") in str(exc.value)
+
+
+def test_master_needs_three_node_faces(tmp_path):
+    with pytest.raises(DeckError) as exc:
+        load_deck(_deck(tmp_path, low="Q4PE"))
+    assert "3-node faces" in str(exc.value)
+
+
+def _stresses(result):
+    return np.concatenate([cb.stress.reshape(-1, 4) for cb in result.cells])
+
+
+def test_patch_test_nested_non_matching(tmp_path):
+    """A uniform pressure through a flat non-matching interface (3 master faces, 6 slave faces,
+    each slave face within one master face): the exact solution is uniform, sigma_yy = -p in
+    both bodies, contact pressure p, no shear, and the one-pass element reproduces it to
+    round-off."""
+    _, cap, _ = run_deck(_deck(tmp_path), tmp_path / "out")
+    r = cap.results[-1]
+    cp = r.contacts[0]
+    s = _stresses(r)
+    assert np.abs(cp.p - 100.0).max() <= 1e-8 * 100
+    assert np.abs(cp.tau).max() <= 1e-8 * 100
+    assert np.abs(s[:, 1] + 100.0).max() <= 1e-8 * 100
+    assert np.abs(s[:, [0, 3]]).max() <= 1e-8 * 100
+    # action = reaction: the load on the top goes to the lower body's support whole
+    assert r.reactions_by_set["LOW_BOTTOM"][1] == pytest.approx(100.0 * 30, rel=1e-12)
+
+
+PUSH = PRESS + """*STEP, NAME=PUSH
+*STATIC
+0.1, 1, 1e-4, 0.1
+*BOUNDARY
+UP_LEFT, 1, 1, 0.05
+*END STEP
+"""
+
+
+@pytest.mark.parametrize("b", [0.0, 5.0])
+def test_two_body_coulomb_block(tmp_path, b):
+    """An upper block (20 wide) pressed on a lower one by 100 MPa and pushed sideways until it
+    slides: the force that holds it is T = phi P + B A, P = 100 * 20, A = 20 (Coulomb)."""
+    path = _deck(tmp_path, nxl=3, nxu=8, x0=5, lx=20, b=b, steps=PUSH)
+    _, cap, _ = run_deck(path, tmp_path / "out")
+    r = cap.results[-1]
+    cp = r.contacts[0]
+    P, A = 100.0 * 20, 20.0
+    assert cp.P == pytest.approx(P, rel=1e-6)
+    assert abs(cp.T) == pytest.approx(0.3 * P + b * A, rel=1e-6)
+    assert abs(r.reactions_by_set["UP_LEFT"][0]) == pytest.approx(0.3 * P + b * A, rel=1e-6)
+    assert (np.asarray(cp.status) == 2).all()                          # all slip
+
+
+def test_hertz_two_cylinders(tmp_path):
+    """decks/hertz_two_body.dat: steel on aluminium cylinders; a and p0 against Hertz with the
+    pair's E* and R (Johnson 4.2) within 1 % (the HERTZ check of the deck)."""
+    from pathlib import Path
+
+    from lagamine_py.checks import evaluate_checks
+    from lagamine_py.solver import run
+
+    deck = Path(__file__).resolve().parents[1] / "decks" / "hertz_two_body.dat"
+    model = load_deck(deck)
+    run(model, tmp_path / "out", deck_path=deck)
+    (res,) = evaluate_checks(model.checks, tmp_path / "out")
+    assert res["message"] == ""
+    assert res["errors"]["a"] < 0.01 and res["errors"]["p0"] < 0.01
+    # E* and R of the deck's check are those of the pair
+    E1, n1, E2, n2 = 200000.0, 0.3, 70000.0, 0.33
+    assert 1.0 / ((1 - n1**2) / E1 + (1 - n2**2) / E2) == pytest.approx(57870.4, rel=1e-6)
+
+
+PUNCH = """*MESH, NAME=PUNCH, TYPE=Q8PE, X0=0, Y0=10, LX=10, LY=5, NX=8, NY=4
+*MATERIAL, NAME=STEEL, LAW=ELASTIC
+E=200000, NU=0.3
+*SOLID, ELSET=PUNCH, MATERIAL=STEEL
+*CONTACT LAW, NAME=DRY, TYPE=COULOMB
+KP=1e7, KT=1e7, PHI=0.5
+{body}
+*STEP, NAME=PRESS
+*STATIC
+1, 1
+*BOUNDARY
+PUNCH_LEFT, 1, 1, 0
+{bc}
+*DLOAD
+PUNCH_TOP, P, 50
+*END STEP
+"""
+RIGID = ("*FOUNDATION, NAME=FLAT\n-10, 10\n10, 10\n30, 10\n"
+         "*CONTACT, SURFACE=PUNCH_BOTTOM, FOUNDATION=FLAT, LAW=DRY", "")
+ELASTIC = ("*MESH, NAME=BASE, TYPE=Q8PE, X0=0, Y0=0, LX=30, LY=10, NX=4, NY=4\n"
+           "*MATERIAL, NAME=HARD, LAW=ELASTIC\nE={E}, NU=0.3\n*SOLID, ELSET=BASE, MATERIAL=HARD\n"
+           "*CONTACT, SURFACE=PUNCH_BOTTOM, MASTER=BASE_TOP, LAW=DRY",
+           "BASE_LEFT, 1, 1, 0\nBASE_BOTTOM, 2, 2, 0")
+
+
+def test_flat_punch_tends_to_the_rigid_foundation(tmp_path):
+    """An elastic punch (half, frictional: the pressure peaks at its edge) pressed on an elastic
+    base block whose Young's modulus grows 10, 100, 1000 times the punch's: the contact pressure
+    at every Gauss point tends to that of the same punch on a rigid flat, the difference falling
+    like 1/E (the base's compliance)."""
+    def pressures(body, bc, name):
+        path = tmp_path / f"{name}.dat"
+        path.write_text(PUNCH.format(body=body, bc=bc))
+        _, cap, _ = run_deck(path, tmp_path / name)
+        return cap.results[-1].contacts[0].p
+
+    p_rigid = pressures(*RIGID, "rigid")
+    assert p_rigid.max() > 1.2 * p_rigid.min() > 0        # not uniform: the test can tell
+    errs = []
+    for k in (10, 100, 1000):
+        p = pressures(ELASTIC[0].format(E=2e5 * k), ELASTIC[1], f"k{k}")
+        errs.append(np.abs(p - p_rigid).max() / p_rigid.max())
+    assert errs[0] > errs[1] > errs[2]
+    assert errs[1] < 0.2 * errs[0] and errs[2] < 0.2 * errs[1]
+    assert errs[2] < 0.01
