@@ -159,6 +159,11 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
             doc="rigid foundation: parabolic arcs through points (1,2,3), (3,4,5), ..."),
     Keyword("CONTACT LAW", "model", (_name("NAME", True), _name("TYPE", True, doc="contact law plugin")),
             _PAIRS, doc="contact law: the plugin's parameters"),
+    Keyword("CONTACT LAW TABLE", "model", (),
+            Data("rows", (Col("lambda"), Col("phi"), Col("B")), min_lines=1,
+                 doc="`lambda, phi, B` rows, the first at lambda = 0, lambda increasing"),
+            doc="after a *CONTACT LAW (COULOMB): friction phi and adhesion B piecewise linear in the "
+                "slip lambda, flat beyond the last row (instead of PHI, B and their hardening)"),
     Keyword("CONTACT", "model", (_name("SURFACE", True), _name("FOUNDATION", True),
                                  _name("LAW", True), Param("GAUSS", int, 3, choices=(2, 3))),
             doc="contact elements on a surface against a foundation"),
