@@ -253,6 +253,11 @@ class Coulomb(ContactLaw):
         return Exponential(v0, v[inf], v[length])
 
     # -- hardening functions ---------------------------------------------------------------
+    @property
+    def breaks(self) -> tuple[float, ...]:
+        """The slips where a derivative of B or phi jumps (clipping kinks, table rows), sorted."""
+        return tuple(float(b) for b in self._breaks)
+
     def adhesion(self, lam):
         """``B(lam)`` and its right-derivative (arrays of lam's shape)."""
         lam = np.asarray(lam, float)
