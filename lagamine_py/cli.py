@@ -135,15 +135,18 @@ def _cmd_check(args) -> int:
     return EXIT_OK
 
 
-def _show_advice() -> None:
+def _show_advice():
     """Model advice on stderr, as ``check`` prints it: the deck builder's notices (INFO) and
-    warnings such as a penalty far from 20-100 E/h; they also go to the run's .log file."""
+    warnings such as a penalty far from 20-100 E/h; they also go to the run's .log file.
+    Returns the handler, removed when the run ends (a later run, or a test, has its own
+    stderr: advice given during a run must not go to a closed stream)."""
     import logging
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(_AdviceFormatter())
     log = logging.getLogger("lagamine_py.advice")
     log.addHandler(handler)
     log.setLevel(logging.INFO)
+    return handler
 
 
 class _AdviceFormatter:
@@ -186,9 +189,13 @@ def _cmd_run(args) -> int:
     if args.kernel:
         for step in model.steps:
             step.controls["KERNEL"] = args.kernel
-    _show_advice()
-    outcome = run(model, outdir, restart=args.restart is not None, deck_path=Path(deck),
-                  progress=not args.quiet)
+    handler = _show_advice()
+    try:
+        outcome = run(model, outdir, restart=args.restart is not None, deck_path=Path(deck),
+                      progress=not args.quiet)
+    finally:
+        import logging
+        logging.getLogger("lagamine_py.advice").removeHandler(handler)
     stream = sys.stdout if outcome.status == EXIT_OK else sys.stderr
     print(f"lagamine-py: {outcome.message}", file=stream)
     for line in outcome.summary:

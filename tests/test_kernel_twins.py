@@ -778,6 +778,8 @@ class ContactConfig:
 #: business, the element's variants are covered by CONTACT_LAWS
 NEW_LAW_CONFIGS = ((3, 3, False, False), (3, 3, True, True), (2, 2, False, True),
                    (3, 2, True, False))
+LOBATTO_CONFIGS = ((3, "LOBATTO3", False, True), (3, "LOBATTO3", True, False),
+                   (2, "LOBATTO2", True, True))
 
 
 def contact_configs() -> list[ContactConfig]:
@@ -800,6 +802,15 @@ def contact_configs() -> list[ContactConfig]:
                             nfn, gauss, ax, nlgeom, law, substeps=(1, 3, "AUTO", 2)[j % 4],
                             theta=(1.0, 0.5, 0.0)[(j // 4) % 3], hold=(j // 3) % 2 == 1,
                             translation=(0, 1, 2)[(j // 2) % 3], seed=len(out)))
+    # the Gauss-Lobatto rules (points at the nodes; LINEAR has no kernel: tests/test_contact_rules)
+    for nfn, gauss, ax, nlgeom in LOBATTO_CONFIGS:
+        for law in CONTACT_LAWS:
+            j = seen[nlgeom]
+            seen[nlgeom] += 1
+            out.append(ContactConfig(nfn, gauss, ax, nlgeom, law,
+                                     substeps=(1, 3, "AUTO", 2)[j % 4],
+                                     theta=(1.0, 0.5, 0.0)[(j // 4) % 3], hold=(j // 3) % 2 == 1,
+                                     translation=(0, 1, 2)[(j // 2) % 3], seed=len(out)))
     return out
 
 
@@ -853,7 +864,7 @@ def contact_batches() -> Iterator[Batch]:
         ref, fast, rng, x0, kinds, normals, tangents = _contact_pair(cfg,
                                                                      ALL_CONTACT_LAWS[cfg.law])
         rec = Recorder(ref.law)
-        state = contact_state(ref.law, kinds, cfg.gauss, rng)
+        state = contact_state(ref.law, kinds, ref.nq, rng)
         u_old, u_new = contact_motion(rng, x0, kinds, normals, tangents,
                                       big_slides=cfg.law in ("softening", "run-in", "wear",
                                                              "table", "cap, run-in"))
@@ -1139,6 +1150,8 @@ def contact_required() -> list[str]:
             "stick on the cap's surface, unloading", "CLASSICAL on the cap"]
     req += [f"{nfn}-node faces, {gauss} Gauss points, {geo}, {kin}" for nfn in (2, 3)
             for gauss in (2, 3) for geo in ("PE", "AX") for kin in ("small strain", "NLGEOM")]
+    req += [f"{nfn}-node faces, {gauss} Gauss points, {'AX' if ax else 'PE'}, "
+            f"{'NLGEOM' if nlgeom else 'small strain'}" for nfn, gauss, ax, nlgeom in LOBATTO_CONFIGS]
     return req
 
 

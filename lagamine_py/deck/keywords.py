@@ -165,7 +165,15 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
             doc="after a *CONTACT LAW (COULOMB): friction phi and adhesion B piecewise linear in the "
                 "slip lambda, flat beyond the last row (instead of PHI, B and their hardening)"),
     Keyword("CONTACT", "model", (_name("SURFACE", True), _name("FOUNDATION", True),
-                                 _name("LAW", True), Param("GAUSS", int, 3, choices=(2, 3))),
+                                 _name("LAW", True),
+                                 Param("GAUSS", int, 3,
+                                       choices=(2, 3, "LOBATTO2", "LOBATTO3", "LINEAR"),
+                                       doc="the contact element's points: 2 or 3 Gauss points; "
+                                           "LOBATTO3 (LOBATTO2 on 2-node faces): at the face's "
+                                           "nodes; LINEAR: the law at the face's corners, its "
+                                           "tractions linear along the face (no pressure "
+                                           "oscillation under stiff penalties, "
+                                           "docs/accuracy_speed.md)")),
             doc="contact elements on a surface against a foundation"),
     Keyword("AMPLITUDE", "model", (_name("NAME", True),),
             Data("rows", (Col("time"), Col("value")), repeat=2, min_lines=1, doc="`time, value` pairs"),

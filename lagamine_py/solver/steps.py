@@ -42,7 +42,8 @@ from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, driving_loads, step_loads
 from .newton import FLOOR_FRACTION, Settings, solve_increment
 from .predictor import first_iterate
-from .problem import CONTACT, SOLID, Problem, build_problem, dload_surfaces
+from .problem import (CONTACT, SOLID, Problem, alternation_advice, build_problem,
+                      dload_surfaces, faces_in_contact, penalty_advice)
 from .stabilisation import FlipFlop
 from .stepper import StepExhausted, Stepper
 
@@ -153,6 +154,7 @@ class Controller:
         self.foundations = list(model.foundations)
         self.has_contact = CONTACT in problem.kinds
         self._kernel_text = None          # what the log last said of the solid kernel
+        self._advised: set[str] = set()   # the contact advice given (once per pair and what)
 
     # -- the run ---------------------------------------------------------------------------
     def run(self, restart: bool) -> Outcome:
@@ -252,8 +254,29 @@ class Controller:
             self._hand_out(si, step, loads, stepper.inc, t, stepper.attempt, conv,
                            stepper.cutbacks, stepper.period)
             self._save_restart(si, loads, stepper, last)
+        self._contact_advice(si)
         self.reached = loads.reached(self.model)
         self.time_offset += stepper.period
+
+    def _contact_advice(self, si: int) -> None:
+        """At the end of a step, per contact pair, once per run each: the penalties on the faces
+        in contact (:func:`~.problem.penalty_advice`), and stresses that alternate from point to
+        point (:func:`~.problem.alternation_advice`)."""
+        advice_log = logging.getLogger("lagamine_py.advice")
+        for k in self.problem.indices(CONTACT):
+            name, group = self.problem.group_names[k], self.problem.groups[k]
+            texts = []
+            scales = self.problem.face_scales.get(k)
+            if scales is not None:
+                texts += penalty_advice(name, group.law,
+                                        scales[faces_in_contact(group, self.states[k])])
+            alternating = alternation_advice(name, group, self.states[k])
+            texts += [alternating] if alternating else []
+            for text in texts:
+                key = text.split(" is ")[0] if " E/h " in text else name + " alternation"
+                if key not in self._advised:
+                    self._advised.add(key)
+                    advice_log.warning(f"step {si + 1}: {text}")
 
     def _setup_step(self, si, step):
         """The step's ``*CONTROLS`` (defaults filled), Newton settings and linear solver; the
