@@ -2,14 +2,25 @@
 
 Heavy modules (the solver, vtk, matplotlib) are imported inside the sub-commands so that
 ``lagamine-py --help`` answers at once.
+
+Every error ends with one message on stderr and an exit status (DECKS.md): 2 for a deck error
+(at most :data:`MAX_DECK_ERRORS` of them are printed, then their count), an output directory in
+use or holding another deck's results, a restart of another deck; 1 for anything else -- a
+file that cannot be read or written, damaged restart data, a plugin that raised.  ``--debug``
+shows the traceback of an unexpected error instead.
 """
 from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
-from .core.exits import EXIT_DECK, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER
+from .core.exits import EXIT_DECK, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER, sigterm_interrupts
+
+MAX_DECK_ERRORS = 50        # deck errors printed; the others are counted
+
+MAX_DECK_ERRORS = 50        # deck errors printed; the others are counted
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -17,15 +28,24 @@ def _parser() -> argparse.ArgumentParser:
         prog="lagamine-py",
         description="2D / axisymmetric large-strain finite elements with frictional contact "
                     "(Godinas, Charlier & Cescotto), driven by .dat decks.")
+    ap.add_argument("--debug", action="store_true",
+                    help="show the traceback of an unexpected error (a bug, a plugin that raised)")
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show the traceback of an unexpected error")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    run = sub.add_parser("run", help="run a deck", description="Run a .dat deck and write the "
+    run = sub.add_parser("run", parents=[common], help="run a deck", description="Run a .dat deck and write the "
                          "VTK series, contact and reaction tables, status and log files.")
     run.add_argument("deck", type=Path, nargs="?", help="the .dat deck (not needed with --restart)")
     run.add_argument("-o", "--output", type=Path, help="output directory (default: <deck stem>_out "
                      "next to the current directory)")
     run.add_argument("--restart", type=Path, metavar="OUT",
-                     help="resume the run whose output directory is OUT from its last converged increment")
+                     help="resume the run whose output directory is OUT from its last converged "
+                          "increment (its deck and --param values are those recorded there)")
+    run.add_argument("--overwrite", action="store_true",
+                     help="replace the results of another deck in the output directory (a rerun "
+                          "of the same deck always replaces its own)")
     run.add_argument("--solver", type=str.upper, metavar="NAME",
                      help="sparse linear solver, any registered one: AUTO, SPLU, PARDISO or a "
                           "plugin's (overrides the deck's *CONTROLS SOLVER)")
@@ -37,13 +57,12 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                      help="override a *PARAMETER value of the deck (repeatable)")
 
-    chk = sub.add_parser("check", help="parse and validate a deck without running it")
+    chk = sub.add_parser("check", parents=[common], help="parse and validate a deck without running it")
     chk.add_argument("deck", type=Path)
     chk.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                      help="override a *PARAMETER value of the deck (repeatable)")
 
-    plugins = sub.add_parser(
-        "plugins", help="list installed elements, laws, contact laws, writers, solvers and checks "
+    plugins = sub.add_parser("plugins", parents=[common], help="list installed elements, laws, contact laws, writers, solvers and checks "
         "with their parameters; --check runs their contract checks",
         description="List the registered plugins of every kind with their distribution and "
                     "parameters.  With --check, run each plugin's contract checks (tangents "
@@ -55,13 +74,13 @@ def _parser() -> argparse.ArgumentParser:
     plugins.add_argument("--check", action="store_true",
                          help="run the contract checks (lagamine_py.contracts) on the plugins")
 
-    cmp_ = sub.add_parser("compare", help="compare a run with an archived reference")
+    cmp_ = sub.add_parser("compare", parents=[common], help="compare a run with an archived reference")
     cmp_.add_argument("run", type=Path)
     cmp_.add_argument("ref", type=Path)
     cmp_.add_argument("--tol", action="append", default=[], metavar="QTY=REL[,ABS]",
                       help="tolerance override per quantity, e.g. --tol p=1e-6,1e-3")
 
-    plot = sub.add_parser("plot", help="PNG charts of a run (p and tau along the interface, forces, mesh)")
+    plot = sub.add_parser("plot", parents=[common], help="PNG charts of a run (p and tau along the interface, forces, mesh)")
     plot.add_argument("run", type=Path)
     plot.add_argument("-o", "--output", type=Path, help="directory for the PNG files (default RUN/plots)")
     plot.add_argument("--states", metavar="LIST",
@@ -77,7 +96,7 @@ def _parser() -> argparse.ArgumentParser:
                       help="factor of the displacements in mesh.png (default: chosen so that the "
                            "deformation shows; 1 for the true shape)")
 
-    sweep = sub.add_parser("sweep", help="run a deck over a grid of *PARAMETER values")
+    sweep = sub.add_parser("sweep", parents=[common], help="run a deck over a grid of *PARAMETER values")
     sweep.add_argument("deck", type=Path)
     sweep.add_argument("--set", action="append", default=[], metavar="NAME=v1,v2,...", dest="sets")
     sweep.add_argument("-o", "--output", type=Path, required=True)
@@ -99,6 +118,26 @@ def main(argv: list[str] | None = None) -> int:
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_OK
+    except Exception as exc:
+        if args.debug:
+            raise
+        status, text = _error_text(exc)
+        print(f"lagamine-py {args.command}: {text}", file=sys.stderr)
+        return status
+
+
+def _error_text(exc: Exception) -> tuple[int, str]:
+    """The exit status and the one message of an error that reached the command line."""
+    from .core.outdir import OutputDirError
+    if isinstance(exc, OutputDirError):
+        return EXIT_DECK, str(exc)
+    if isinstance(exc, OSError):
+        what = exc.strerror or str(exc)
+        return EXIT_OTHER, f"{exc.filename}: {what}" if exc.filename else what
+    if isinstance(exc, MemoryError):
+        return EXIT_OTHER, "out of memory"
+    return EXIT_OTHER, (f"{type(exc).__name__}: {exc} (an unexpected error, in lagamine-py or "
+                        f"in a plugin; `lagamine-py --debug ...` shows where)")
 
 
 def _parameters(items: list[str]) -> dict[str, str] | None:
@@ -120,7 +159,8 @@ def _load(deck: Path, params: list[str] = ()):
         print(f"lagamine-py: {exc}", file=sys.stderr)
         return None
     except DeckError as exc:
-        print(f"lagamine-py: the deck has errors; nothing was run:\n{exc}", file=sys.stderr)
+        print(f"lagamine-py: the deck has errors; nothing was run:\n{exc.report(MAX_DECK_ERRORS)}",
+              file=sys.stderr)
         return None
 
 
@@ -135,18 +175,24 @@ def _cmd_check(args) -> int:
     return EXIT_OK
 
 
-def _show_advice():
-    """Model advice on stderr, as ``check`` prints it: the deck builder's notices (INFO) and
-    warnings such as a penalty far from 20-100 E/h; they also go to the run's .log file.
-    Returns the handler, removed when the run ends (a later run, or a test, has its own
-    stderr: advice given during a run must not go to a closed stream)."""
+@contextmanager
+def _advice_on_stderr():
+    """Model advice on stderr while the block runs, as ``check`` prints it: the deck builder's
+    notices (INFO) and warnings such as a penalty far from 20-100 E/h; they also go to the
+    run's .log file.  The handler goes at the end: left behind, a later run in the same process
+    would print the advice twice, or to a stream closed since."""
     import logging
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(_AdviceFormatter())
     log = logging.getLogger("lagamine_py.advice")
+    level = log.level
     log.addHandler(handler)
     log.setLevel(logging.INFO)
-    return handler
+    try:
+        yield
+    finally:
+        log.removeHandler(handler)
+        log.setLevel(level)
 
 
 class _AdviceFormatter:
@@ -158,21 +204,34 @@ class _AdviceFormatter:
 
 def _cmd_run(args) -> int:
     from .solver import run
-    from .solver.restart import restart_deck
+    from .solver.restart import RestartError, deck_of, load
 
+    params = args.param
     if args.restart is not None:
         outdir = args.restart
-        deck = args.deck or restart_deck(outdir)
+        try:
+            saved = deck_of(load(outdir))
+        except RestartError as exc:
+            print(f"lagamine-py: {exc}; nothing to resume", file=sys.stderr)
+            return exc.status
+        deck = args.deck or (Path(saved.path) if saved.path else None)
         if deck is None:
-            print(f"lagamine-py: {outdir} holds no restart data", file=sys.stderr)
-            return EXIT_OTHER
+            print(f"lagamine-py: the restart data of {outdir} names no deck: give it, "
+                  f"lagamine-py run DECK --restart {outdir}", file=sys.stderr)
+            return EXIT_DECK
+        if not Path(deck).exists():
+            print(f"lagamine-py: the deck {deck} of the run in {outdir} no longer exists: give "
+                  f"it, lagamine-py run DECK --restart {outdir}", file=sys.stderr)
+            return EXIT_DECK
+        if not params:           # the values the interrupted run was given
+            params = [f"{k}={v}" for k, v in saved.parameters.items()]
     elif args.deck is None:
         print("lagamine-py run: give a DECK, or --restart OUT", file=sys.stderr)
         return EXIT_DECK
     else:
         deck = args.deck
         outdir = args.output or Path(f"{Path(deck).stem}_out")
-    model = _load(Path(deck), args.param)
+    model = _load(Path(deck), params)
     if model is None:
         return EXIT_DECK
     if args.solver:
@@ -189,13 +248,9 @@ def _cmd_run(args) -> int:
     if args.kernel:
         for step in model.steps:
             step.controls["KERNEL"] = args.kernel
-    handler = _show_advice()
-    try:
+    with _advice_on_stderr(), sigterm_interrupts():    # kill stops it as Ctrl-C does
         outcome = run(model, outdir, restart=args.restart is not None, deck_path=Path(deck),
-                      progress=not args.quiet)
-    finally:
-        import logging
-        logging.getLogger("lagamine_py.advice").removeHandler(handler)
+                      progress=not args.quiet, overwrite=args.overwrite)
     stream = sys.stdout if outcome.status == EXIT_OK else sys.stderr
     print(f"lagamine-py: {outcome.message}", file=stream)
     for line in outcome.summary:

@@ -25,7 +25,14 @@ A value passes when ``|run - ref| <= max(rel * |ref|, abs)``; ``abs`` defaults t
 largest magnitude of that quantity in the reference (an absolute floor near zero, as MOOSE's csvdiff
 does).  When the two runs did not take the same increments, run values are interpolated linearly in
 time within each step onto the reference times, and the report says so.  Exit status 0 when every
-quantity is within tolerance, 1 otherwise (also when files, steps or points do not match).
+quantity is within tolerance, 1 otherwise (also when files, steps or points do not match), 2 for
+a malformed ``--tol``.
+
+Neither file is trusted: a table that is cut short, has torn rows (a cell count other than the
+header's), text or NUL bytes where numbers belong, NaN in a key column (step, increment,
+element ...), or rows that repeat (the same row twice, or an increment with more rows for a
+point than the step's other increments) is reported as a mismatch, with its line, and is not
+compared.
 """
 from __future__ import annotations
 
@@ -109,8 +116,13 @@ def parse_tolerances(items: list[str]) -> dict[str, tuple[float, float | None]]:
         parts = [v for v in value.split(",") if v.strip()]
         if not name or not parts or len(parts) > 2:
             raise ValueError(f"--tol {item!r}: expected QTY=REL[,ABS]")
-        rel = float(parts[0])
-        ab = float(parts[1]) if len(parts) == 2 else None
+        try:
+            rel = float(parts[0])
+            ab = float(parts[1]) if len(parts) == 2 else None
+        except ValueError:
+            raise ValueError(f"--tol {item!r}: expected QTY=REL[,ABS] with numbers") from None
+        if not all(np.isfinite(v) and v >= 0 for v in (rel, 0.0 if ab is None else ab)):
+            raise ValueError(f"--tol {item!r}: tolerances must be finite and >= 0")
         keys = list(tol) if name.strip().lower() == "all" else [name.strip()]
         for k in keys:
             if k not in tol:
@@ -130,7 +142,10 @@ def compare_dirs(run: Path, ref: Path, tol=None) -> Report:
         if not run_path.exists():
             rep.problems.append(f"{fname} is in the reference but not in the run")
             continue
-        run_t, ref_t = read_table(run_path), read_table(ref_path)
+        run_t = _checked(run_path, "run", key_cols, rep)
+        ref_t = _checked(ref_path, "reference", key_cols, rep)
+        if run_t is None or ref_t is None:
+            continue
         if fname == "contact.csv":
             run_t, ref_t = copen_view(run_t), copen_view(ref_t)
         qtys = tuple(qtys) + tuple(q for q in optional if q in run_t and q in ref_t)
@@ -142,6 +157,82 @@ def compare_dirs(run: Path, ref: Path, tol=None) -> Report:
     if not any((Path(ref) / t[0]).exists() for t in TABLES):
         rep.problems.append(f"{ref} holds none of the compared tables")
     return rep
+
+
+MAX_FILE_PROBLEMS = 5      # problems listed per malformed file, then a count
+
+#: key columns of every compared table, besides the table's own row key
+_KEYS = ("step", "increment")
+
+
+def _checked(path: Path, which: str, key_cols, rep: Report) -> dict[str, np.ndarray] | None:
+    """The table at ``path``, or None (and its problems in ``rep``) when it cannot be trusted:
+    see the module docstring."""
+    problems: list[str] = []
+    try:
+        table = read_table(path, problems)
+    except OSError as exc:
+        problems.append(f"cannot be read: {exc.strerror or exc}")
+        table = {}
+    if not problems:
+        if not table or "step" not in table:
+            problems.append("has no header row with a step column")
+        else:
+            problems += _key_problems(table, key_cols) + _repeats(table, key_cols)
+    if not problems:
+        return table
+    shown = problems[:MAX_FILE_PROBLEMS]
+    more = f" (and {len(problems) - len(shown)} more)" if len(problems) > len(shown) else ""
+    rep.problems.append(f"{path.name} of the {which} cannot be compared: {'; '.join(shown)}{more}")
+    return None
+
+
+def _key_problems(table, key_cols) -> list[str]:
+    """Key cells that are not finite numbers (NaN, inf; text is caught when reading)."""
+    out = []
+    for c in _KEYS + tuple(key_cols):
+        col = table.get(c)
+        if col is None or col.dtype == object:
+            continue
+        bad = np.flatnonzero(~np.isfinite(col))
+        if len(bad):
+            out.append(f"line {bad[0] + 2}: key column {c} is {float(col[bad[0]])}"
+                       + (f" ({len(bad)} such rows)" if len(bad) > 1 else ""))
+    return out
+
+
+def _repeats(table, key_cols) -> list[str]:
+    """Rows that repeat: identical rows, or an increment with more rows for a point (step, key)
+    than the other increments of its step have."""
+    cols = [c for c in table if len(table[c]) == len(table["step"])]
+    n = len(table["step"])
+    seen: dict[tuple, int] = {}
+    for i in range(n):
+        row = tuple(_norm_cell(table[c][i]) for c in cols)
+        if row in seen:
+            return [f"line {i + 2} repeats line {seen[row] + 2} (an increment written twice?)"]
+        seen[row] = i
+    keys = [c for c in key_cols if c in table]
+    if "increment" not in table:
+        return []
+    count: dict[tuple, dict] = {}
+    for i in range(n):
+        point = (table["step"][i],) + tuple(_norm_cell(table[c][i]) for c in keys)
+        per = count.setdefault(point, {})
+        inc = table["increment"][i]
+        per[inc] = per.get(inc, 0) + 1
+    for point, per in count.items():
+        if len(set(per.values())) > 1:
+            usual = min(per.values())
+            inc = max(per, key=per.get)
+            return [f"step {int(point[0])} increment {int(inc)} has {per[inc]} rows for "
+                    f"{dict(zip(keys, point[1:]))}, the step's other increments {usual}: rows "
+                    f"repeat"]
+    return []
+
+
+def _norm_cell(v):
+    return v.upper() if isinstance(v, str) else (None if v != v else float(v))
 
 
 def copen_view(table: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

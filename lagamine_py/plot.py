@@ -198,17 +198,19 @@ class RunInfo:
 
 
 def _model_of(run: Path):
-    """The model of the deck named in the run's restart file, or None (no restart file, the
-    deck moved or no longer reads)."""
-    path = Path(run) / "restart.npz"
-    if not path.exists():
+    """The model of the deck recorded in the run's directory, loaded with the run's parameter
+    values, or None (no record, the deck moved, changed since the run or no longer reads)."""
+    from .core.outdir import recorded_identity
+    deck = recorded_identity(Path(run))
+    if deck is None or not deck.path:
         return None
     try:
-        deck = Path(str(np.load(path, allow_pickle=False)["deck"]))
         from .deck import load_deck
-        return load_deck(deck)
-    except Exception:              # no deck recorded, moved, or no longer valid
+        model = load_deck(Path(deck.path), parameters=deck.parameters or None)
+    except Exception:              # moved, or no longer valid
         return None
+    same = model.source is not None and (not deck.digest or model.source.digest == deck.digest)
+    return model if same else None
 
 
 def is_axisymmetric(run: Path) -> bool:
@@ -223,12 +225,13 @@ def run_info(run: Path, axes: str = "auto") -> RunInfo:
     run = Path(run)
     model = _model_of(run)
     axisym = bool(model is not None and model.axisymmetric) if axes == "auto" else axes == "rz"
-    stems = sorted(run.glob("*.sta")) or sorted(run.glob("*.pvd"))
-    deck = stems[0].stem if stems else (model.name if model is not None else run.name)
+    results = RunResults(run)
+    deck = results.name or (model.name if model is not None else run.name)
     names, loads = {}, {}
-    if stems and stems[0].suffix == ".sta":
+    sta = results.own(".sta")
+    if sta is not None:
         from .output.status import parse_load_text
-        t = read_table(stems[0])
+        t = read_table(sta)
         ok = t.get("failed", np.array(["no"] * len(t.get("step", [])), dtype=object)) == "no"
         for k in np.flatnonzero(ok):
             s, i = int(t["step"][k]), int(t["increment"][k])

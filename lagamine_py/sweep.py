@@ -3,13 +3,14 @@
 Runs a deck over the product grid of ``*PARAMETER`` values, one run directory per point
 (``DIR/<name1>=<v1>_<name2>=<v2>/``), each point a separate process::
 
-    python -m lagamine_py run DECK -o POINTDIR -q --param NAME=VALUE ...
+    python -m lagamine_py run DECK -o POINTDIR -q --overwrite --param NAME=VALUE ...
 
 Where the points run:
 
 * ``-j N`` (default 1): on this machine, ``N`` at a time (``concurrent.futures``
-  ``ProcessPoolExecutor`` workers, each waiting on its run's subprocess; BLAS threads are pinned
-  to 1 per run when ``N > 1``);
+  ``ThreadPoolExecutor`` threads of the sweep's process, each waiting on its run's subprocess,
+  so the sweep knows every run it started; BLAS threads are pinned to 1 per run when
+  ``N > 1``);
 * ``--scheduler ADDRESS``: as tasks of a ``dask.distributed`` cluster (optional extra ``dask``:
   ``pip install "lagamine_py[dask]"``).  The workers must see ``DECK`` and ``DIR`` at the same
   paths (a shared file system) and have ``lagamine_py`` installed.
@@ -23,13 +24,21 @@ included: the work done), ``increments`` (converged) and ``failed_attempts``, th
 ``*CHECK`` columns from :func:`lagamine_py.checks.check_columns` (``<check>_error``, measured
 ``<check>_<qty>``, closed form ``<check>_<qty>_cf``).
 
-A point whose run finished leaves ``POINTDIR/point.json`` (its row and full check results).  A
-rerun of the same sweep (or of a grid extended by more values) skips the points that ran to the
-end (status 0) or stopped on non-convergence (status 3), reusing their rows, so an interrupted
-sweep resumes where it stopped; points with a deck error (2), a crash (1) or a signal are run
-again, on the view that their deck or installation has been fixed in between.  A point whose
-worker failed (an exception, a lost dask worker) is recorded in sweep.csv with status 1 and the
-reason, and leaves no ``point.json``.
+A point whose run finished leaves ``POINTDIR/point.json`` (its row, full check results, and
+the deck it ran: absolute path and digest of the expanded text with the point's parameter
+values, :func:`lagamine_py.deck.deck_digest`).  A rerun of the same sweep (or of a grid extended
+by more values) skips the points that ran to the end (status 0) or stopped on non-convergence
+(status 3) *with the same deck*, reusing their rows, so an interrupted sweep resumes where it
+stopped; a point run with another deck, or with this deck before it (an included file, a
+parameter default) changed, runs again, and the sweep says so.  Points with a deck error (2),
+a crash (1) or a signal are run again, on the view that their deck or installation has been
+fixed in between.  A point whose worker failed (an exception, a lost dask worker) is recorded
+in sweep.csv with status 1 and the reason, and leaves no ``point.json``.
+
+The sweep holds a lock on ``DIR`` (a second sweep into it is refused, exit status 2).  Ctrl-C,
+or SIGTERM, stops it cleanly: the runs in progress are stopped (they get the signal, then
+SIGKILL if they have not stopped within :data:`STOP_GRACE` s), every point that finished is in
+sweep.csv, and the exit status is 130; a rerun resumes.
 """
 from __future__ import annotations
 
@@ -42,20 +51,23 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 import uuid
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from .checks import check_columns, evaluate_checks
-from .core.exits import EXIT_DECK, EXIT_OK, EXIT_OTHER
-from .results import read_table
+from .core.exits import EXIT_DECK, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER, sigterm_interrupts
+from .core.outdir import lock_directory
+from .core.outdir import OutputDirError
+from .results import RunResults
 
 __all__ = ["sweep_main", "run_sweep", "parse_sets", "grid", "point_dirname", "run_point",
-           "point_task", "run_stats", "load_point_checks", "SweepError", "PointDeckError",
-           "POINT_FILE", "SWEEP_FILE"]
+           "point_task", "run_stats", "load_point_checks", "finished_row", "point_digest",
+           "stop_runs", "SweepError", "PointDeckError", "NotRun", "POINT_FILE", "SWEEP_FILE"]
 
 POINT_FILE = "point.json"
 SWEEP_FILE = "sweep.csv"
@@ -63,6 +75,7 @@ FIXED_COLUMNS = ("status", "reason", "wall_s", "cpu_s", "newton_iterations", "in
                  "failed_attempts")
 DASK_CONNECT_TIMEOUT = "30s"
 RESUME_SKIPS = (0, 3)      # exit codes of a point that a rerun does not run again
+STOP_GRACE = 10.0          # s a run has to stop after the signal before it is killed
 THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _UNSAFE = re.compile(r"[^A-Za-z0-9.+\-]")
@@ -72,6 +85,10 @@ Runner = Callable[[Path, dict[str, str], Path], dict[str, Any]]
 
 class SweepError(ValueError):
     """A malformed ``--set`` or an unusable sweep setting (the message says which)."""
+
+
+class NotRun(Exception):
+    """The point did not run: the sweep was interrupted first."""
 
 
 class PointDeckError(Exception):
@@ -120,15 +137,17 @@ def run_point(deck: Path, params: dict[str, str], pointdir: Path, *,
     """Run one point as a subprocess and wait for it.
 
     ``command`` (default ``[python, -m, lagamine_py, run]``) is followed by
-    ``DECK -o POINTDIR -q --param NAME=VALUE ...``; its output goes to ``POINTDIR/run.stdout``
-    and ``run.stderr``.  Returns ``status`` (exit code; minus the signal number if killed),
+    ``DECK -o POINTDIR -q --overwrite --param NAME=VALUE ...``; its output goes to
+    ``POINTDIR/run.stdout`` and ``run.stderr``.  Returns ``status`` (exit code; minus the signal number if killed),
     ``reason`` (see :func:`_reason`) and ``cpu_s`` (user + system time of that child alone, from
     ``os.wait4``, so concurrent runs in one worker do not mix).
     """
     pointdir = Path(pointdir)
     pointdir.mkdir(parents=True, exist_ok=True)
+    # --overwrite: the point directory is the sweep's; a point runs again because its results
+    # are stale (another deck, a changed one), which the run would otherwise refuse to replace
     argv = [*(command or [sys.executable, "-m", "lagamine_py", "run"]),
-            str(deck), "-o", str(pointdir), "-q"]
+            str(deck), "-o", str(pointdir), "-q", "--overwrite"]
     for name, value in params.items():
         argv += ["--param", f"{name}={value}"]
     env = dict(os.environ)
@@ -138,18 +157,82 @@ def run_point(deck: Path, params: dict[str, str], pointdir: Path, *,
     cpu = math.nan
     with open(pointdir / "run.stdout", "w") as out, open(pointdir / "run.stderr", "w") as err:
         proc = subprocess.Popen(argv, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env)
+        live = _Live(proc)
         try:
+            if _STOPPING.is_set():              # the sweep was interrupted as this one started
+                live.stop(signal.SIGTERM)
             if hasattr(os, "wait4"):
                 _, wstatus, usage = os.wait4(proc.pid, 0)
                 proc.returncode = os.waitstatus_to_exitcode(wstatus)
                 cpu = usage.ru_utime + usage.ru_stime
             else:                                   # pragma: no cover (not POSIX)
                 proc.wait()
-        except BaseException:
-            proc.kill()
-            proc.wait()
+            live.reaped.set()
+        except BaseException:       # Ctrl-C in this thread: let the run stop, reap it, go on
+            live.stop_and_reap(signal.SIGINT)
             raise
+        finally:
+            live.forget()
     return {"status": proc.returncode, "reason": _reason(pointdir, proc.returncode), "cpu_s": cpu}
+
+
+# The runs started by run_point in this process and not yet reaped: what an interrupted sweep
+# stops.  A run is reaped by the thread that started it (os.wait4 gives its CPU time), never
+# by the one that stops it.
+_LIVE: set = set()
+_LIVE_LOCK = threading.Lock()
+_STOPPING = threading.Event()       # the sweep is being interrupted: start no more runs
+SETTLE = 0.5                        # s to let a run stop on a Ctrl-C it got from the terminal
+
+
+class _Live:
+    def __init__(self, proc):
+        self.proc = proc
+        self.reaped = threading.Event()
+        with _LIVE_LOCK:
+            _LIVE.add(self)
+
+    def forget(self) -> None:
+        with _LIVE_LOCK:
+            _LIVE.discard(self)
+
+    def stop(self, sig) -> None:
+        """Send ``sig`` unless the run was reaped (its pid may belong to another process)."""
+        if not self.reaped.is_set():
+            try:
+                os.kill(self.proc.pid, sig)
+            except OSError:
+                pass
+
+    def stop_and_reap(self, sig) -> None:
+        """From the thread that started the run: give it :data:`SETTLE` s to stop on its own
+        (a Ctrl-C at the terminal reached it too), then ``sig``, then SIGKILL after
+        :data:`STOP_GRACE` s; reap it."""
+        for action, wait in ((None, SETTLE), (sig, STOP_GRACE), (signal.SIGKILL, None)):
+            if action is not None:
+                self.stop(action)
+            try:
+                self.proc.wait(wait)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+        self.reaped.set()
+
+
+def stop_runs(sig=signal.SIGTERM) -> None:
+    """Stop every run :func:`run_point` started in this process and still running (they are
+    reaped by the threads that wait on them): after :data:`SETTLE` s, ``sig`` (a run stops
+    cleanly on SIGINT or SIGTERM: its files closed, exit status 130), then SIGKILL for those
+    still running :data:`STOP_GRACE` s later."""
+    _STOPPING.set()
+    with _LIVE_LOCK:
+        runs = list(_LIVE)
+    for wait, action in ((SETTLE, sig), (STOP_GRACE, signal.SIGKILL)):
+        deadline = time.monotonic() + wait
+        for run in runs:
+            run.reaped.wait(max(deadline - time.monotonic(), 0.0))
+        for run in runs:
+            run.stop(action)
 
 
 def _last_line(path: Path) -> str:
@@ -163,10 +246,14 @@ def _last_line(path: Path) -> str:
 def _reason(pointdir: Path, status: int) -> str:
     """Why the run stopped: the last line of its stderr (``run`` prints its closing message there
     when it fails, a crash its exception), else of its stdout (the closing message of a run that
-    finished), else of its log."""
+    finished), else of the run's own log."""
     if status < 0:
         return f"killed by signal {signal.Signals(-status).name}"
-    for path in (pointdir / "run.stderr", pointdir / "run.stdout", *sorted(pointdir.glob("*.log"))):
+    try:
+        log = RunResults(pointdir).own(".log")
+    except OutputDirError:                  # the logs of several decks: none is the run's
+        log = None
+    for path in (pointdir / "run.stderr", pointdir / "run.stdout", *([log] if log else [])):
         line = _last_line(path)
         if line:
             return line
@@ -175,11 +262,13 @@ def _reason(pointdir: Path, status: int) -> str:
 
 def run_stats(pointdir: Path) -> dict[str, Any]:
     """Newton iterations (all attempts), converged increments and failed attempts, from the
-    ``.sta`` file of a run directory (zeros when there is none)."""
-    stas = sorted(Path(pointdir).glob("*.sta"))
-    if not stas:
+    run's ``<deck>.sta`` in a run directory (zeros when there is none)."""
+    try:
+        sta = RunResults(Path(pointdir)).sta()
+    except OutputDirError:          # the files of several decks and no record: none is the run's
+        sta = {}
+    if not sta:
         return {"newton_iterations": 0, "increments": 0, "failed_attempts": 0}
-    sta = read_table(stas[0])
     n = len(sta.get("increment", ()))
     failed = [str(f).strip().lower() == "yes" for f in sta.get("failed", ["no"] * n)]
     iters = sta.get("iterations", [])
@@ -188,9 +277,13 @@ def run_stats(pointdir: Path) -> dict[str, Any]:
 
 
 def point_task(deck: Path, params: dict[str, str], pointdir: Path, checks: list[dict[str, Any]],
-               runner: Runner) -> dict[str, Any]:
-    """Run one point with ``runner`` and build its sweep.csv row; write ``point.json`` when the
-    run finished.  Runs in a worker (local process or dask); never raises for a failed run."""
+               runner: Runner, digest: str = "") -> dict[str, Any]:
+    """Run one point with ``runner`` and build its sweep.csv row; write ``point.json`` (with
+    the deck's absolute path and ``digest``) when the run finished.  Runs in a worker (a thread
+    or a dask task); never raises for a failed run (:class:`NotRun` when the sweep was
+    interrupted before the point started)."""
+    if _STOPPING.is_set():
+        raise NotRun(f"{Path(pointdir).name}: not run, the sweep was interrupted")
     pointdir = Path(pointdir)
     pointdir.mkdir(parents=True, exist_ok=True)
     (pointdir / POINT_FILE).unlink(missing_ok=True)      # a rerun: not finished until it is
@@ -207,7 +300,9 @@ def point_task(deck: Path, params: dict[str, str], pointdir: Path, checks: list[
     row.update(run_stats(pointdir))
     results = evaluate_checks(checks, pointdir) if checks else []
     row.update(check_columns(results))
-    _write_json(pointdir / POINT_FILE, {"params": params, "row": row, "checks": results})
+    _write_json(pointdir / POINT_FILE, {"params": params, "row": row, "checks": results,
+                                        "deck": {"path": str(Path(deck).resolve()),
+                                                 "digest": digest}})
     return row
 
 
@@ -217,18 +312,48 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
-def finished_row(pointdir: Path) -> dict[str, Any] | None:
+def finished_row(pointdir: Path, digest: str | None = None) -> dict[str, Any] | None:
     """The stored row of a point a rerun skips: one that ran to the end (status 0) or stopped on
-    non-convergence (3).  None otherwise: no marker, an unreadable one, or a deck error (2), a
-    crash (1) or a signal, which say the deck or the installation needed fixing: run again."""
+    non-convergence (3), with the deck whose expanded text has ``digest`` (when given).  None
+    otherwise: no marker, an unreadable one, another deck or a changed one, or a deck error
+    (2), a crash (1) or a signal, which say the deck or the installation needed fixing: run
+    again."""
+    data = _point_record(pointdir)
+    row = data.get("row")
+    if not isinstance(row, dict) or row.get("status") not in RESUME_SKIPS:
+        return None
+    if digest is not None and _recorded_digest(data) != digest:
+        return None
+    return row
+
+
+def _point_record(pointdir: Path) -> dict:
     try:
         data = json.loads((Path(pointdir) / POINT_FILE).read_text())
     except (OSError, ValueError):
-        return None
-    row = data.get("row") if isinstance(data, dict) else None
-    if not isinstance(row, dict) or row.get("status") not in RESUME_SKIPS:
-        return None
-    return row
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _recorded_digest(data: dict) -> str | None:
+    deck = data.get("deck")
+    return str(deck.get("digest", "")) if isinstance(deck, dict) else None
+
+
+def stale_deck(pointdir: Path, digest: str) -> bool:
+    """Whether the point finished (status 0 or 3) with another deck than the one of ``digest``
+    (or before the deck changed): its results are stale and it runs again."""
+    data = _point_record(pointdir)
+    row = data.get("row")
+    return (isinstance(row, dict) and row.get("status") in RESUME_SKIPS
+            and _recorded_digest(data) != digest)
+
+
+def point_digest(deck: Path, params: dict[str, str]) -> str:
+    """The digest of the deck's expanded text with the point's parameter values (errors in
+    the deck do not matter here: they are the checks' business)."""
+    from .deck import deck_digest
+    return deck_digest(Path(deck), dict(params))
 
 
 def load_point_checks(deck: Path, params: dict[str, str]) -> list[dict[str, Any]]:
@@ -272,7 +397,10 @@ def _failure(point: dict[str, str], dirname: str, exc: BaseException) -> dict[st
 
 
 def _run_local(tasks, jobs: int, done: Callable[[int, dict], None]) -> None:
-    """``tasks``: [(index, args of point_task)]; ``jobs`` <= 1 runs them here, one by one."""
+    """``tasks``: [(index, args of point_task)]; ``jobs`` <= 1 runs them here, one by one,
+    else ``jobs`` threads.  Interrupted (KeyboardInterrupt: Ctrl-C, or SIGTERM through
+    :func:`sweep_main`), it stops the runs in progress, records every point that finished
+    (those stopped included) and raises KeyboardInterrupt again."""
     if jobs <= 1:
         for idx, args in tasks:
             try:
@@ -281,15 +409,33 @@ def _run_local(tasks, jobs: int, done: Callable[[int, dict], None]) -> None:
                 row = _failure(args[1], Path(args[2]).name, exc)
             done(idx, row)
         return
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        futures = {pool.submit(point_task, *args): (idx, args) for idx, args in tasks}
+    pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="sweep-point")
+    futures = {pool.submit(point_task, *args): (idx, args) for idx, args in tasks}
+    recorded = set()
+
+    def record(fut) -> None:
+        idx, args = futures[fut]
+        recorded.add(fut)
+        try:
+            row = fut.result()
+        except NotRun:
+            return
+        except Exception as exc:                 # the task itself broke
+            row = _failure(args[1], Path(args[2]).name, exc)
+        done(idx, row)
+    try:
         for fut in as_completed(futures):
-            idx, args = futures[fut]
-            try:
-                row = fut.result()
-            except Exception as exc:             # e.g. BrokenProcessPool: a worker died
-                row = _failure(args[1], Path(args[2]).name, exc)
-            done(idx, row)
+            record(fut)
+    except BaseException:
+        for fut in futures:
+            fut.cancel()                         # the points not started
+        stop_runs(signal.SIGTERM)
+        pool.shutdown(wait=True)
+        for fut in futures:                      # those that ended meanwhile, in grid order
+            if fut not in recorded and fut.done() and not fut.cancelled():
+                record(fut)
+        raise
+    pool.shutdown(wait=True)
 
 
 def _run_dask(tasks, address: str, done: Callable[[int, dict], None]) -> None:
@@ -307,13 +453,24 @@ def _run_dask(tasks, address: str, done: Callable[[int, dict], None]) -> None:
         for idx, args in tasks:
             key = f"lagamine-point-{Path(args[2]).name}-{uuid.uuid4().hex[:8]}"
             futures[client.submit(point_task, *args, key=key, pure=False)] = (idx, args)
-        for fut in dask_completed(list(futures)):
-            idx, args = futures[fut]
-            try:
-                row = fut.result()
-            except Exception as exc:             # KilledWorker, a lost connection, ...
-                row = _failure(args[1], Path(args[2]).name, exc)
-            done(idx, row)
+        recorded = set()
+        try:
+            for fut in dask_completed(list(futures)):
+                idx, args = futures[fut]
+                try:
+                    row = fut.result()
+                except Exception as exc:             # KilledWorker, a lost connection, ...
+                    row = _failure(args[1], Path(args[2]).name, exc)
+                recorded.add(fut)
+                done(idx, row)
+        except BaseException:
+            # the points that finished are recorded; the others are cancelled (a task already
+            # running on a worker runs to its end there: dask cannot stop it)
+            for fut, (idx, args) in futures.items():
+                if fut not in recorded and fut.status == "finished":
+                    done(idx, fut.result())
+            client.cancel([f for f in futures if f not in recorded])
+            raise
 
 
 # ---------------------------------------------------------------- the sweep
@@ -326,6 +483,7 @@ def run_sweep(deck: Path, axes: dict[str, list[str]], outdir: Path, jobs: int = 
     not finish, which cannot happen unless the sweep was interrupted)."""
     deck, outdir = Path(deck).resolve(), Path(outdir).resolve()
     outdir.mkdir(parents=True, exist_ok=True)
+    _STOPPING.clear()
     points = grid(axes)
     dirnames = [point_dirname(p) for p in points]
     if len(set(dirnames)) != len(dirnames):
@@ -334,12 +492,21 @@ def run_sweep(deck: Path, axes: dict[str, list[str]], outdir: Path, jobs: int = 
     names = list(axes)
     if runner is None:
         runner = partial(run_point, threads=1 if (jobs > 1 or scheduler) else None)
-    rows: list[dict[str, Any] | None] = [finished_row(outdir / d) for d in dirnames]
+    digests = [point_digest(deck, p) for p in points]
+    rows: list[dict[str, Any] | None] = [finished_row(outdir / d, dg)
+                                         for d, dg in zip(dirnames, digests)]
     skipped = sum(r is not None for r in rows)
+    stale = [d for d, dg, r in zip(dirnames, digests, rows)
+             if r is None and stale_deck(outdir / d, dg)]
     csv_path = outdir / SWEEP_FILE
     write_sweep_csv(csv_path, names, rows)
     if skipped:
-        log(f"sweep: {skipped} of {len(points)} points already finished in {outdir}; skipping them")
+        log(f"sweep: {skipped} of {len(points)} points already finished in {outdir} with this "
+            f"deck; skipping them")
+    if stale:
+        log(f"sweep: {len(stale)} point(s) ran with another deck, or with this deck before it "
+            f"changed (its text, an included file or a parameter value); running them again: "
+            f"{', '.join(stale[:5])}{' ...' if len(stale) > 5 else ''}")
 
     counter = itertools.count(skipped + 1)
 
@@ -363,7 +530,9 @@ def run_sweep(deck: Path, axes: dict[str, list[str]], outdir: Path, jobs: int = 
             row = {"point": dirname, **point, "status": EXIT_DECK,
                    "reason": str(exc), "wall_s": 0.0, "cpu_s": 0.0,
                    "newton_iterations": 0, "increments": 0, "failed_attempts": 0}
-            _write_json(pointdir / POINT_FILE, {"params": point, "row": row, "checks": []})
+            _write_json(pointdir / POINT_FILE, {"params": point, "row": row, "checks": [],
+                                                "deck": {"path": str(deck),
+                                                         "digest": digests[idx]}})
             done(idx, row)
             continue
         except Exception as exc:        # the deck could not be read here: run it, checks unknown
@@ -372,7 +541,7 @@ def run_sweep(deck: Path, axes: dict[str, list[str]], outdir: Path, jobs: int = 
                     f"sweep.csv will have no check columns")
                 warned = True
             checks = []
-        tasks.append((idx, (deck, point, pointdir, checks, runner)))
+        tasks.append((idx, (deck, point, pointdir, checks, runner, digests[idx])))
     if scheduler:
         _run_dask(tasks, scheduler, done)
     else:
@@ -388,17 +557,26 @@ def _one_line(text: str) -> str:
 def sweep_main(deck: Path, sets: list[str], outdir: Path, jobs: int = 1,
                scheduler: str | None = None, *, runner: Runner | None = None) -> int:
     """The ``sweep`` command.  Exit status 0 when every point ran with status 0, 1 when some
-    did not (sweep.csv says which and why), 2 for a bad ``--set`` or a missing deck."""
+    did not (sweep.csv says which and why), 2 for a bad ``--set``, a missing deck or a sweep
+    already running into ``outdir``, 130 when interrupted (Ctrl-C or SIGTERM)."""
+    from .core.outdir import OutputDirError
     try:
         axes = parse_sets(sets)
         if not Path(deck).is_file():
             raise SweepError(f"no deck {deck}")
         if jobs < 1:
             raise SweepError(f"-j {jobs}: need at least 1")
-        rows = run_sweep(deck, axes, outdir, jobs, scheduler, runner)
-    except SweepError as exc:
+        Path(outdir).mkdir(parents=True, exist_ok=True)
+        with sigterm_interrupts(), lock_directory(Path(outdir)):
+            rows = run_sweep(deck, axes, outdir, jobs, scheduler, runner)
+    except (SweepError, OutputDirError) as exc:
         print(f"lagamine-py sweep: {exc}", file=sys.stderr)
         return EXIT_DECK
+    except KeyboardInterrupt:
+        print(f"lagamine-py sweep: interrupted; the points that finished are in "
+              f"{Path(outdir) / SWEEP_FILE}; run the same command again to go on",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
     bad = [r for r in rows if r is None or int(r["status"]) != EXIT_OK]
     print(f"lagamine-py sweep: {len(rows) - len(bad)} of {len(rows)} points ran to the end; "
           f"table {Path(outdir) / SWEEP_FILE}")

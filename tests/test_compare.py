@@ -96,3 +96,65 @@ def test_a_reference_without_the_pair_column_still_compares(tmp_path):
     text = [text[0] + ",contact"] + [r + ",A->F" for r in text[1:]]
     (tmp_path / "run" / "contact.csv").write_text("\n".join(text) + "\n")
     assert compare_dirs(tmp_path / "run", tmp_path / "ref").ok
+
+
+# ---------------------------------------------------------------- files that cannot be trusted
+
+def _damage(path, how):
+    text = path.read_text()
+    lines = text.splitlines(keepends=True)
+    if how == "duplicated increment":          # the rows of step 1 increment 2 written again,
+        inc2 = [ln for ln in lines if ln.startswith("1,2,")]     # computed again (round-off)
+        return path.write_text(text + "".join(ln.replace(",0,slip", ",1e-17,slip") for ln in inc2))
+    if how == "duplicated row":
+        return path.write_text(text + lines[1])
+    if how == "torn row":                      # a row cut by a kill, the next glued to it
+        return path.write_text("".join(lines[:2]) + lines[2][:9] + "".join(lines[3:]))
+    if how == "cut file":
+        return path.write_text(text[:-7])
+    if how == "text in a number":
+        return path.write_text(text.replace(lines[2].split(",")[7], "abc", 1))
+    if how == "NUL bytes":
+        return path.write_bytes(text.encode()[:200] + b"\0\0\0" + text.encode()[200:])
+    if how == "NaN key":
+        return path.write_text(text.replace(f"\n{lines[2].split(',')[0]},{lines[2].split(',')[1]},",
+                                            "\nnan,2,", 1))
+    raise ValueError(how)
+
+
+DAMAGE = {"duplicated increment": "rows repeat", "duplicated row": "repeats line",
+          "torn row": "cells where the header has 13", "cut file": "cut short",
+          "text in a number": "'abc' is not a number", "NUL bytes": "NUL bytes at line",
+          "NaN key": "key column step is nan"}
+
+
+@pytest.mark.parametrize("how", list(DAMAGE))
+@pytest.mark.parametrize("side", ["run", "ref"])
+def test_a_damaged_table_fails_with_its_line(tmp_path, capsys, how, side):
+    """Either file may be damaged: compare fails (exit 1), says where, and never crashes; before,
+    a duplicated increment passed, and NaN keys, text, NUL bytes or torn rows crashed it."""
+    write_run(tmp_path / "run")
+    write_run(tmp_path / "ref")
+    _damage(tmp_path / side / "contact.csv", how)
+    assert main(["compare", str(tmp_path / "run"), str(tmp_path / "ref")]) == 1
+    out = capsys.readouterr().out
+    which = "run" if side == "run" else "reference"
+    assert f"MISMATCH: contact.csv of the {which} cannot be compared: " in out
+    assert DAMAGE[how] in out and "FAIL" in out
+
+
+def test_duplicated_totals_fail_too(tmp_path):
+    write_run(tmp_path / "run")
+    write_run(tmp_path / "ref")
+    path = tmp_path / "run" / "contact_totals.csv"
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(lines) + lines[-1])
+    rep = compare_dirs(tmp_path / "run", tmp_path / "ref")
+    assert not rep.ok and any("contact_totals.csv of the run" in p for p in rep.problems)
+
+
+@pytest.mark.parametrize("tol", ["p=-1e-6", "p=1e-6,-1", "p=nan", "p=inf", "p=x"])
+def test_a_negative_or_non_finite_tolerance_is_refused(tmp_path, capsys, tol):
+    write_run(tmp_path / "run")
+    assert main(["compare", str(tmp_path / "run"), str(tmp_path / "run"), "--tol", tol]) == 2
+    assert "--tol" in capsys.readouterr().err

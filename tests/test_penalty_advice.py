@@ -71,3 +71,15 @@ def test_advised_penalty_gives_no_warning(tmp_path, capsys):
     assert "warning" not in err
     err, _ = _run(tmp_path, capsys, DECKS / "stick_slip.dat", name="ss")   # KT = 1200 E/h
     assert "warning" not in err
+
+
+def test_advice_is_printed_once_per_run_in_one_process(tmp_path, capsys):
+    """Runs through ``main`` in one process (a script, a test suite, the fuzzer) each print
+    their advice once; the stderr handler of an earlier run does not linger (it printed the
+    advice twice, then a "Logging error" traceback once its stream was closed)."""
+    deck = tmp_path / "stiff.dat"
+    deck.write_text((DECKS / "coulomb_block.dat").read_text().replace("KT=2e6", "KT=1e9"))
+    for k in range(2):
+        assert main(["run", str(deck), "-o", str(tmp_path / f"out{k}"), "-q"]) == 0
+        err = capsys.readouterr().err
+        assert err.count("KT = 1e+09 is") == 1 and "Logging error" not in err

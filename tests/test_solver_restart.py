@@ -1,5 +1,7 @@
 """Restart: a run interrupted after a converged increment and resumed reaches the same result,
 increment by increment, as an uninterrupted run."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -65,7 +67,8 @@ def test_restart_reaches_the_uninterrupted_result(tmp_path, stop_at, exc):
         with pytest.raises(exc):
             go(tmp_path / "cut", first)
         assert first.closed[0] == 1
-    assert restart_deck(tmp_path / "cut").as_posix() == "some/deck.dat"
+    # recorded absolute: a restart from another directory finds the same deck
+    assert restart_deck(tmp_path / "cut") == Path("some/deck.dat").resolve()
     second = Recorder()
     out = go(tmp_path / "cut", second, restart=True)
     assert out.status == 0
@@ -142,6 +145,37 @@ def test_ctrl_c_through_the_command_line(tmp_path, monkeypatch, capsys):
     assert main(["run", str(deck), "-o", str(out), "-q"]) == 130
     err = capsys.readouterr().err
     assert f"lagamine-py run --restart {out}" in err and "results in" in err
+    assert "exit status 130" in (out / "coulomb_block.log").read_text().splitlines()[-1]
+    monkeypatch.setattr(steps.Controller, "_save_restart", real)
+    assert main(["run", "--restart", str(out), "-q"]) == 0
+
+
+def test_sigterm_stops_a_run_as_ctrl_c_does(tmp_path, monkeypatch, capsys):
+    """``kill`` (SIGTERM, as a batch system or an interrupted sweep sends) during
+    `lagamine-py run`: exit status 130, the files closed, the restart hint; before, the process
+    died at once, mid-write, with its lock and log unfinished."""
+    import os
+    import signal
+    from pathlib import Path
+
+    from lagamine_py.cli import main
+    from lagamine_py.solver import steps
+
+    deck = Path(__file__).resolve().parents[1] / "decks" / "coulomb_block.dat"
+    out = tmp_path / "out"
+    real = steps.Controller._save_restart
+    calls = []
+
+    def terminate_at_the_third(self, *a, **k):
+        real(self, *a, **k)
+        calls.append(1)
+        if len(calls) == 3:
+            os.kill(os.getpid(), signal.SIGTERM)
+    monkeypatch.setattr(steps.Controller, "_save_restart", terminate_at_the_third)
+    before = signal.getsignal(signal.SIGTERM)
+    assert main(["run", str(deck), "-o", str(out), "-q"]) == 130
+    assert signal.getsignal(signal.SIGTERM) is before          # the handler is given back
+    assert f"lagamine-py run --restart {out}" in capsys.readouterr().err
     assert "exit status 130" in (out / "coulomb_block.log").read_text().splitlines()[-1]
     monkeypatch.setattr(steps.Controller, "_save_restart", real)
     assert main(["run", "--restart", str(out), "-q"]) == 0

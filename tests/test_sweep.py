@@ -9,8 +9,12 @@ asserted below is known in advance: the Newton iterations it wrote, the Coulomb 
 import csv
 import json
 import math
+import os
+import signal
+import subprocess
 import sys
 import textwrap
+import time
 from functools import partial
 from pathlib import Path
 
@@ -29,6 +33,9 @@ STAND_IN = textwrap.dedent('''
     deck, out = args[0], args[args.index("-o") + 1]
     assert "-q" in args
     params = dict(args[k + 1].split("=", 1) for k, a in enumerate(args) if a == "--param")
+    import pathlib
+    open(pathlib.Path(out) / "pid.txt", "w").write(str(__import__("os").getpid()))
+    time.sleep(float(params.get("SLEEP", 0)))
     burn = float(params.get("BURN", 0))
     t0 = time.process_time()
     while time.process_time() - t0 < burn:
@@ -124,7 +131,8 @@ def test_run_point_passes_the_parameters_and_measures_the_child(tmp_path, stand_
     out = sw.run_point(deck, {"KP": "2e6", "BURN": "0.2"}, tmp_path / "pt", command=command)
     assert out["status"] == 0 and out["reason"] == "lagamine-py: 1 step finished"
     argv = (tmp_path / "pt" / "argv.txt").read_text().splitlines()
-    assert argv == [str(deck), "-o", str(tmp_path / "pt"), "-q", "--param", "KP=2e6", "--param", "BURN=0.2"]
+    assert argv == [str(deck), "-o", str(tmp_path / "pt"), "-q", "--overwrite",
+                    "--param", "KP=2e6", "--param", "BURN=0.2"]
     # the child burnt >= 0.2 s of its own CPU time; wait4 accounts it to that child alone
     assert 0.2 <= out["cpu_s"] < 60
     assert sw.run_stats(tmp_path / "pt") == {"newton_iterations": 4 * 3 + 7, "increments": 4,
@@ -304,3 +312,84 @@ def test_an_unreachable_scheduler_is_a_clear_error(tmp_path, stand_in, monkeypat
     code = sw.sweep_main(deck, ["KP=1e6"], tmp_path / "s", scheduler=f"tcp://127.0.0.1:{port}")
     assert code == 2
     assert f"cannot connect to the dask scheduler at tcp://127.0.0.1:{port}" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- what a resumed sweep reuses
+
+
+def test_points_of_a_changed_or_another_deck_run_again(tmp_path, stand_in, capsys):
+    """A point is reused only when it ran with the same deck (digest of the expanded text with
+    its parameter values): an edited deck, or another deck swept into the same directory, runs
+    every point again and the sweep says so."""
+    command, deck = stand_in
+    out = tmp_path / "sweep"
+    first = Counting(command)
+    assert sw.sweep_main(deck, ["B=0,5"], out, runner=first) == 0 and len(first.ran) == 2
+    same = Counting(command)
+    assert sw.sweep_main(deck, ["B=0,5"], out, runner=same) == 0 and same.ran == []
+    capsys.readouterr()
+    deck.write_text(deck.read_text() + "** PHI 0.2 -> 0.4\n")           # the deck is edited
+    edited = Counting(command)
+    assert sw.sweep_main(deck, ["B=0,5"], out, runner=edited) == 0
+    assert edited.ran == [{"B": "0"}, {"B": "5"}]
+    assert "2 point(s) ran with another deck, or with this deck before it changed" in \
+        capsys.readouterr().out
+    other = tmp_path / "other.dat"
+    other.write_text("*HEADING\nanother deck\n")
+    again = Counting(command)
+    assert sw.sweep_main(other, ["B=0,5"], out, runner=again) == 0 and len(again.ran) == 2
+    stored = json.loads((out / "B=0" / "point.json").read_text())
+    assert stored["deck"]["path"] == str(other.resolve())
+    check = json.loads((out / "B=5" / "point.json").read_text())["deck"]["digest"]
+    assert check == sw.point_digest(other, {"B": "5"}) != sw.point_digest(deck, {"B": "5"})
+
+
+def test_a_second_sweep_into_the_same_directory_is_refused(tmp_path, stand_in, capsys):
+    from lagamine_py.core.outdir import lock_directory
+    command, deck = stand_in
+    out = tmp_path / "sweep"
+    out.mkdir()
+    with lock_directory(out):
+        assert main(["sweep", str(deck), "--set", "B=0", "-o", str(out)]) == 2
+    assert "is in use by another run" in capsys.readouterr().err
+    assert not (out / "sweep.csv").exists()
+
+
+SWEEP = """
+import sys
+from functools import partial
+from lagamine_py import sweep as sw
+sw.load_point_checks = lambda deck, params: []
+command, deck, out = sys.argv[1:3], sys.argv[3], sys.argv[4]
+sys.exit(sw.sweep_main(deck, ["SLEEP=0,60,61,62"], out, jobs=2,
+                       runner=partial(sw.run_point, command=command)))
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_a_stopped_sweep_stops_its_runs_and_keeps_its_finished_points(tmp_path, stand_in, sig):
+    """``kill`` (or Ctrl-C) of a sweep with two points running: the runs are stopped (no
+    process left behind), the point that finished is in sweep.csv, exit status 130."""
+    command, deck = stand_in
+    out = tmp_path / "sweep"
+    proc = subprocess.Popen([sys.executable, "-c", SWEEP, *command, str(deck), str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    slow = [out / f"SLEEP={s}" / "pid.txt" for s in (60, 61)]
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not all(p.exists() for p in slow):
+        time.sleep(0.05)
+    assert all(p.exists() for p in slow), proc.stderr.read() if proc.poll() is not None else ""
+    time.sleep(0.2)                                    # the pids written, the sleeps begun
+    pids = [int(p.read_text()) for p in slow]
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted; the points that finished are in" in err
+    for pid in pids:
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)                            # stopped, and reaped by the sweep
+    rows = {r["point"]: r for r in read_sweep(out)}
+    assert rows["SLEEP=0"]["status"] == "0"
+    for s in (60, 61):                                 # stopped, recorded, not reused
+        assert rows[f"SLEEP={s}"]["status"] == str(-signal.SIGTERM)
+    assert "SLEEP=62" not in rows and not (out / "SLEEP=62").exists()      # never started

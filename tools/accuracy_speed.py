@@ -50,7 +50,7 @@ sys.path.insert(0, str(ROOT))
 from lagamine_py.checks.closed_forms import fit_hertz, hertz_closed_form  # noqa: E402
 from lagamine_py.results import read_table  # noqa: E402
 from lagamine_py.sweep import (PointDeckError, finished_row, load_point_checks,  # noqa: E402
-                               point_dirname, point_task, run_point)
+                               point_digest, point_dirname, point_task, run_point)
 
 
 # ------------------------------------------------------------------ running points
@@ -63,17 +63,19 @@ def run_points(deck: Path, points: list[dict[str, str]], workdir: Path, jobs: in
     todo = []
     for p in points:                 # decks are read here, in this thread (registry loading)
         pointdir = workdir / point_dirname(p)
-        row = finished_row(pointdir)
+        digest = point_digest(deck, p)          # a point of a changed deck runs again
+        row = finished_row(pointdir, digest)
         if row is None:
             try:
-                todo.append((len(rows), p, pointdir, load_point_checks(deck, p)))
+                todo.append((len(rows), p, pointdir, load_point_checks(deck, p), digest))
             except PointDeckError as exc:
                 row = {"point": pointdir.name, **p, "status": 2, "reason": str(exc),
                        "cpu_s": math.nan, "wall_s": math.nan, "newton_iterations": 0}
         rows.append(None if row is None else {**row, "dir": pointdir})
     runner = partial(run_point, threads=1)
     with ThreadPoolExecutor(max_workers=jobs) as pool:
-        futs = [(i, pool.submit(point_task, deck, p, d, c, runner), d) for i, p, d, c in todo]
+        futs = [(i, pool.submit(point_task, deck, p, d, c, runner, dg), d)
+                for i, p, d, c, dg in todo]
         for k, (i, fut, d) in enumerate(futs):
             rows[i] = {**fut.result(), "dir": d}
             log(f"  [{k + 1}/{len(futs)}] {d.name}: status {rows[i]['status']}, "

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from .. import registry
+from ..core.outdir import OutputDirError
 from ..core.plugin import Parametrized
 from ..results import RunResults
 
@@ -78,7 +79,7 @@ def evaluate_check(check: Check, run: RunResults, name: str = "", kind: str = ""
     entry = _entry(name, kind)
     try:
         entry.update(check.evaluate(run))
-    except (CheckError, KeyError, registry.ParamError) as exc:
+    except (CheckError, KeyError, registry.ParamError, OutputDirError) as exc:
         entry["message"] = str(exc.args[0]) if exc.args else type(exc).__name__
     except (OSError, IndexError, ValueError, ZeroDivisionError) as exc:
         entry["message"] = f"{type(exc).__name__}: {exc}"

@@ -42,7 +42,7 @@ quantity and the headline ``error``.  Types:
     ``u(r) = (1 + nu) P A^2 / (E (B^2 - A^2)) ((1 - 2 nu) r + B^2 / r)``; max relative error.
 ``LIMIT_PRESSURE`` (``P, SIGMAY, A, B``, optional ``PERIOD`` default 1)
     One-step run whose pressure ramps linearly to ``P`` over ``PERIOD``: the pressure reached is
-    ``P t / PERIOD`` at the last converged increment of the ``.sta`` file; closed form (Hill,
+    ``P t / PERIOD`` at the last converged increment of the run's ``<deck>.sta``; closed form (Hill,
     thick cylinder in plane strain) ``p_lim = (2 / sqrt 3) SIGMAY ln(B / A)``.  When ``P`` is
     below ``p_lim`` the run must finish: error 0 if it did, else the shortfall; when ``P`` is
     above, ``error = |p_reached - p_lim| / p_lim``.
@@ -436,10 +436,9 @@ class LimitPressure(Check):
 
 def check_limit_pressure(chk: LimitPressure, run: RunResults) -> dict[str, Any]:
     P, sy, A, B, period = chk.values["P"], chk.sigmay, chk.a, chk.b, chk.period
-    stas = sorted(run.outdir.glob("*.sta"))
-    if not stas:
-        raise CheckError(f"no .sta file in {run.outdir}")
-    sta = RunResults(run.outdir).table(stas[0].name)
+    sta = run.sta()
+    if not sta:
+        raise CheckError(f"no .sta file of the run in {run.outdir}")
     ok = np.array([str(f) != "yes" for f in sta.get("failed", ["no"] * len(sta.get("time", ())))])
     if not ok.any():
         raise CheckError("no converged increment in the .sta file")

@@ -7,15 +7,18 @@ their file and line).  ``reference_markdown()`` writes the keyword reference fro
 """
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
-from ..model import Model
+import numpy as np
+
+from ..model import DeckSource, Model
 from .builder import build_model
 from .errors import DeckError, DeckProblem, Problems
 from .grammar import Block, DataRow, parse_deck_blocks
 from .keywords import KEYWORDS, reference_markdown
 
-__all__ = ["load_deck", "parse_deck", "DeckError", "DeckProblem", "Block", "DataRow", "KEYWORDS",
+__all__ = ["load_deck", "parse_deck", "deck_digest", "DeckError", "DeckProblem", "Block", "DataRow", "KEYWORDS",
            "reference_markdown"]
 
 
@@ -26,9 +29,34 @@ def parse_deck(path, parameters: dict[str, str] | None = None) -> list[Block]:
     Raises DeckError on text that cannot be read.
     """
     problems = Problems()
-    blocks, _ = parse_deck_blocks(path, problems, parameters)
+    blocks, _, _ = parse_deck_blocks(path, problems, parameters)
     problems.raise_if_any()
     return blocks
+
+
+def deck_digest(path, parameters: dict[str, str] | None = None) -> str:
+    """The digest of the deck's expanded text (every file read, the parameter values given,
+    the mesh files of ``*IMPORT``): what :attr:`Model.source` records, without building the
+    model (the deck may have errors)."""
+    blocks, _, digest = parse_deck_blocks(path, Problems(), parameters)
+    return _with_imports(digest, blocks)
+
+
+def _with_imports(digest: str, blocks: list[Block]) -> str:
+    """``digest`` extended by the bytes of the files ``*IMPORT`` reads (the builder reads them,
+    not the reader); unchanged for a deck without ``*IMPORT``."""
+    imports = [b for b in blocks if b.keyword == "IMPORT" and b.params.get("INPUT")]
+    if not imports:
+        return digest
+    h = hashlib.sha256(digest.encode())
+    for blk in imports:
+        path = Path(blk.file).parent / str(blk.params["INPUT"])
+        try:
+            data = path.read_bytes() if path.is_file() else b""
+        except OSError:
+            data = b""
+        h.update(b"\0IMPORT %d\0" % len(data) + data)
+    return h.hexdigest()
 
 
 def load_deck(path, parameters: dict[str, str] | None = None) -> Model:
@@ -38,9 +66,12 @@ def load_deck(path, parameters: dict[str, str] | None = None) -> Model:
     ``sweep`` do.  ``Model.name`` is the deck's file stem.
     """
     problems = Problems()
-    blocks, _ = parse_deck_blocks(path, problems, parameters)
+    blocks, _, digest = parse_deck_blocks(path, problems, parameters)
     if not blocks and not problems:
         problems.add(str(path), 1, "", "the deck has no keyword lines (an empty deck?)")
-    model = build_model(Path(path).stem, blocks, problems)
+    with np.errstate(all="ignore"):     # huge values are reported as deck errors, not warnings
+        model = build_model(Path(path).stem, blocks, problems)
     problems.raise_if_any()
+    model.source = DeckSource(str(Path(path).resolve()), _with_imports(digest, blocks),
+                              {str(k): str(v) for k, v in (parameters or {}).items()})
     return model

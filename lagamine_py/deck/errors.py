@@ -18,7 +18,8 @@ class DeckProblem(NamedTuple):
 
 class DeckError(Exception):
     """A deck that cannot run.  ``problems`` is the list of ``(file, line, keyword, message)``
-    items; ``str()`` gives one line per problem, ``file:line: *KEYWORD: message``."""
+    items; ``str()`` gives one line per problem, ``file:line: *KEYWORD: message``;
+    :meth:`report` at most ``limit`` of them, then how many more there are."""
 
     def __init__(self, problems):
         self.problems = [DeckProblem(*p) for p in problems]
@@ -28,12 +29,24 @@ class DeckError(Exception):
     def items(self) -> list[DeckProblem]:
         return self.problems
 
+    def report(self, limit: int = 50) -> str:
+        """The first ``limit`` problems, one a line, then a line counting the others."""
+        lines = [str(p) for p in self.problems[:limit]]
+        if len(self.problems) > limit:
+            lines.append(f"... and {len(self.problems) - limit} more errors "
+                         f"({len(self.problems)} in all; the first {limit} are shown)")
+        return "\n".join(lines)
+
     def __reduce__(self):           # picklable (sweeps run decks in other processes)
         return (type(self), (self.problems,))
 
 
 class Problems:
-    """Collector of problems; :meth:`raise_if_any` stops with one DeckError holding them all."""
+    """Collector of problems; :meth:`raise_if_any` stops with one DeckError holding them all.
+    Past :attr:`EXPLAINED` problems, costly explanations may be skipped (a file of 100 000 bad
+    lines is not read for 20 s to explain lines nobody reads)."""
+
+    EXPLAINED = 1000
 
     def __init__(self):
         self.items: list[DeckProblem] = []

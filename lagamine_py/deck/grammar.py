@@ -20,7 +20,10 @@ grouped into :class:`Block` objects, one per keyword line.  Nothing is evaluated
 from __future__ import annotations
 
 import bisect
+import hashlib
+import os
 import re
+import stat
 import threading
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -227,7 +230,8 @@ class _Grammar:
         numbers_line.set_parse_action(self._numbers_line)
 
         kw = pp.Regex(r"\*[ \t]*[A-Za-z][\w\-]*(?:[ \t]+[A-Za-z][\w\-]*)*").set_name("*KEYWORD")
-        pname = pp.Regex(r"[A-Za-z_][\w\-]*").set_name("parameter name")
+        # a name may hold single spaces (Abaqus's REF NODE=): words until "=", "," or the end
+        pname = pp.Regex(r"[A-Za-z_][\w\-]*(?:[ \t]+[A-Za-z_][\w\-]*)*").set_name("parameter name")
         pvalue = (pp.QuotedString('"') | pp.Regex(r"[^,=\n\"]*[^,=\s\"]")).set_name("parameter value")
         param = pp.Group(pname + pp.Optional(pp.Suppress("=") + pvalue)).set_name("NAME=VALUE")
         kw_line = (kw + pp.ZeroOrMore(comma + param) + pp.Optional(comma)
@@ -268,7 +272,8 @@ class _Grammar:
         return DataLine(self.lineno(loc), list(t))
 
     def _kw_line(self, s, loc, t):
-        params = [(g[0].upper(), g[1].strip() if len(g) > 1 else None) for g in t[1:]]
+        params = [(" ".join(g[0].split()).upper(), g[1].strip() if len(g) > 1 else None)
+                  for g in t[1:]]
         return KeywordLine(self.lineno(loc), _keyword_name(t[0]), params)
 
     def parse_text(self, text: str, offset: int = 0) -> list:
@@ -344,11 +349,36 @@ def _segments(text: str):
         yield start + 1, lines[start:], bulk
 
 
+MAX_INCLUDE_DEPTH = 64   # *INCLUDE levels (a chain deeper than this is a mistake, not a model)
+
+
+def _unreadable(path: Path) -> str:
+    """Why ``path`` cannot be read as a deck ("" when it can): missing, a directory, or not a
+    regular file (a FIFO would block the reader, a device never end).  ``os.stat`` does not
+    open the file."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return "does not exist"
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    if stat.S_ISDIR(st.st_mode):
+        return "is a directory, not a file"
+    if not stat.S_ISREG(st.st_mode):
+        return "is not a regular file (a FIFO, a socket or a device)"
+    return ""
+
+
 class _Reader:
-    """Walks the lines of a deck and its includes in order, substituting parameters."""
+    """Walks the lines of a deck and its includes in order, substituting parameters.
+
+    ``digest`` hashes what was read, as read: every file's bytes in reading order, then the
+    parameter values given from outside (:func:`parse_deck_blocks`) -- the identity of the
+    expanded deck that restarts and sweeps compare."""
 
     def __init__(self, problems: Problems, overrides: dict[str, str] | None):
         self.problems = problems
+        self.digest = hashlib.sha256()
         self.params: dict[str, str] = {}            # NAME -> value text
         self.overrides = {k.upper(): str(v) for k, v in (overrides or {}).items()}
         self.used_overrides: set[str] = set()
@@ -376,11 +406,17 @@ class _Reader:
         return out
 
     def read(self, path: Path, label: str, stack: tuple[Path, ...]) -> None:
+        why = _unreadable(path)
+        if why:
+            self.problems.add(label, 0, "", f"cannot read the deck: {label} {why}")
+            return
         try:
-            text = path.read_text(encoding="utf-8", errors="replace")
+            raw = path.read_bytes()
         except OSError as exc:
             self.problems.add(label, 0, "", f"cannot read the deck: {exc.strerror or exc}")
             return
+        self.digest.update(b"%d\0" % len(raw) + raw)
+        text = raw.decode("utf-8-sig", errors="replace")      # a UTF-8 BOM is no text
         for first, lines, bulk in _segments(text):
             rows = _number_rows(lines, label, first) if bulk and len(lines) >= BULK_MIN_LINES else None
             if rows is not None:
@@ -438,8 +474,9 @@ class _Reader:
             return False
         target = (path.parent / rel)
         shown = str(Path(label).parent / rel)
-        if not target.is_file():
-            self.problems.add(label, kl.line, "INCLUDE", f"included file {shown} does not exist")
+        why = _unreadable(target)
+        if why:
+            self.problems.add(label, kl.line, "INCLUDE", f"included file {shown} {why}")
             return False
         other = _not_deck_text(target)
         if other:
@@ -448,6 +485,11 @@ class _Reader:
         if any(target.resolve() == p for p in stack):
             self.problems.add(label, kl.line, "INCLUDE",
                               f"{shown} includes itself (directly or through other *INCLUDE)")
+            return False
+        if len(stack) > MAX_INCLUDE_DEPTH:
+            self.problems.add(label, kl.line, "INCLUDE",
+                              f"*INCLUDE nested more than {MAX_INCLUDE_DEPTH} files deep: a chain "
+                              f"this long is a mistake (files including copies of each other?)")
             return False
         self.read(target, shown, stack + (target.resolve(),))
         return False
@@ -533,10 +575,13 @@ def _group(lines, problems: Problems) -> list[Block]:
             blocks.append(Block(obj.keyword, params, file, obj.line))
         elif isinstance(obj, BadLine):
             kw = _bad_keyword(obj.text)
+            # past a few screens of messages nobody reads the reasons: skip the re-parse
+            why = (GRAMMAR.why_bad(obj.text) if len(problems.items) < problems.EXPLAINED else
+                   f"cannot read this {'data' if kw is None else 'keyword'} line")
             if kw is None:
-                problems.add(file, obj.line, blocks[-1].keyword if blocks else "", GRAMMAR.why_bad(obj.text))
+                problems.add(file, obj.line, blocks[-1].keyword if blocks else "", why)
             else:   # its data lines go with it, unread: one message for the keyword line
-                problems.add(file, obj.line, kw, GRAMMAR.why_bad(obj.text))
+                problems.add(file, obj.line, kw, why)
                 blocks.append(Block(kw, {}, file, obj.line, broken=True))
         elif not blocks:
             problems.add(file, obj.line, "", "data line outside any keyword: a data line must follow "
@@ -553,12 +598,16 @@ def _group(lines, problems: Problems) -> list[Block]:
 
 
 def parse_deck_blocks(path, problems: Problems, parameters: dict[str, str] | None = None):
-    """Blocks of the deck at ``path`` (includes expanded, parameters substituted), and the
-    parameter values (NAME -> text).  Problems go to ``problems``."""
+    """Blocks of the deck at ``path`` (includes expanded, parameters substituted), the
+    parameter values (NAME -> text) and the digest of the expanded deck (SHA-256 hex of every
+    file read and of the parameter values given: see :class:`_Reader`).  Problems go to
+    ``problems``."""
     path = Path(path)
     reader = _Reader(problems, parameters)
     reader.read(path, str(path), (path.resolve(),))
     for key in sorted(set(reader.overrides) - reader.used_overrides):
         problems.add(str(path), 1, "PARAMETER", f"parameter {key} given to override is not defined by a "
                                                 f"*PARAMETER of the deck{did_you_mean(key, reader.params)}")
-    return _group(reader.lines, problems), dict(reader.params)
+    for key in sorted(reader.overrides):
+        reader.digest.update(f"\0{key}={reader.overrides[key]}".encode(errors="surrogatepass"))
+    return _group(reader.lines, problems), dict(reader.params), reader.digest.hexdigest()

@@ -226,7 +226,7 @@ class ImportMixin:
     # ------------------------------------------------------------ Abaqus / CalculiX
     def _import_inp(self, blk, params, path, label):
         from .grammar import parse_deck_blocks
-        blocks, _ = parse_deck_blocks(path, self.pb)
+        blocks, _, _ = parse_deck_blocks(path, self.pb)
         blocks = abaqus.flatten(blocks, self.pb)
         self.importing = _Importing(params["ANALYSIS"], params["INTEGRATION"], blk, label)
         start, nodes_before, names_before = len(self.groups), len(self.nodes), self._names()

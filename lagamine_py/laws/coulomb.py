@@ -344,6 +344,14 @@ class Coulomb(ContactLaw):
             return None, ratio
         return {"an": an, "at": at}, ratio
 
+    def stored_energy(self, state) -> np.ndarray:
+        """``p^2 / (2 KP) + tau^2 / (2 KT)`` per unit area: the elastic energy of the normal and
+        tangential penalty springs (``p = KP d``, ``tau`` = KT times the elastic part of the
+        tangential displacement); a frictionless law (``tau = 0``) stores none tangentially."""
+        p = np.asarray(state["p"], float)
+        tau = np.asarray(state["tau"], float)
+        return 0.5 * p * p / self.kp + 0.5 * tau * tau / self.kt
+
     def update(self, state, d, du, dv, frozen=None):
         """Integrate one sub-interval for all points (see :class:`ContactLaw`).
 

@@ -17,7 +17,9 @@ class says :attr:`Writer.always` -- and calls, in this order:
   happened.
 
 Every writer flushes what it wrote before returning from a hook, so a killed run loses nothing
-that converged (``lagamine-py plugins --check`` replays a real run into a writer and checks that
+that converged (the controller saves the restart point *after* the writers took the increment:
+what a writer holds back past that point -- a step's last state kept for the end of the step --
+a kill loses for good, so write it when ``result.step_end`` says the step is done) (``lagamine-py plugins --check`` replays a real run into a writer and checks that
 no file it opened through ``open`` holds unflushed data after any hook).  Resuming a run (``lagamine-py run --restart``), writers are built with
 ``append=True``: they keep what is in the output directory and drop what the interrupted run
 wrote at or after the first resumed increment.
@@ -31,7 +33,22 @@ import numpy as np
 from ..core.plugin import Plugin
 from ..elements.base import CellBlock, ContactPoints
 
-__all__ = ["Writer", "IncrementResult", "FailedAttempt", "CellBlock", "ContactPoints"]
+__all__ = ["Writer", "IncrementResult", "FailedAttempt", "CellBlock", "ContactPoints", "ToolState"]
+
+
+@dataclass
+class ToolState:
+    """A rigid tool (a foundation) at a converged increment: its placement ``(dx, dy, theta)``
+    (the translation of its reference point and its rotation about it, counter-clockwise), the
+    reference point now ``point`` (2,), and the force (2,) and moment (about ``point``) it
+    exerts on the bodies -- at equilibrium the reactions of its reference node.  ``ref_node``
+    the node id of its reference node (None for a tool moved by ``*FOUNDATION MOTION``)."""
+    name: str
+    ref_node: int | None
+    placement: np.ndarray
+    point: np.ndarray
+    force: np.ndarray
+    moment: float
 
 
 @dataclass
@@ -49,13 +66,17 @@ class IncrementResult:
     coords0: np.ndarray           # (n, 2) reference coordinates
     u: np.ndarray                 # (n, 2) displacement
     reaction: np.ndarray          # (n, 2) reaction force at constrained DOFs (0 elsewhere)
-    reactions_by_set: dict[str, np.ndarray]     # target name -> (2,) summed RF1, RF2
+    reactions_by_set: dict[str, np.ndarray]     # target name -> (3,) summed RF1, RF2, RM6
     cells: list[CellBlock]        # one per solid group: topology, ids, conn, Gauss stress and PEEQ
     contacts: list[ContactPoints] = field(default_factory=list)
     foundations: dict[str, np.ndarray] = field(default_factory=dict)   # name -> (m,2) current points
     write_fields: bool = True     # this increment is due for field output (*OUTPUT FREQUENCY)
+    step_end: bool = False        # the last increment of its step (the step time reached)
     residual_history: list[float] = field(default_factory=list)
     loads: dict[str, float] = field(default_factory=dict)   # the step's loads reached: label -> value
+    tools: dict[str, ToolState] = field(default_factory=dict)   # foundation name -> its state
+    # the energy balance since t = 0 (lagamine_py.solver.energy.TERMS), when the run tracks it
+    energy: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass

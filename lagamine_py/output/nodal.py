@@ -1,9 +1,12 @@
 """``displacements.csv``: nodal positions and displacements at the last converged increment of each step.
 
 The VTK series holds every output increment for ParaView; this table holds, as text, the state that
-references archive and ``lagamine-py compare`` checks.  The increment is kept in memory and written
-when the next step starts or the run closes, so an interrupted step still leaves its last converged
-increment on disk.
+references archive and ``lagamine-py compare`` checks.  The last increment of a step
+(``result.step_end``) is written at once, before the controller saves its restart point: a kill
+at the step end cannot lose it (``tests/test_kill_windows.py``).  The latest increment of a step
+in progress is kept in memory and written when the run closes, so an interrupted step still
+leaves its last converged increment on disk; a resumed run drops those rows of the step it
+resumes.
 """
 from __future__ import annotations
 
@@ -37,6 +40,9 @@ class DisplacementsWriter(Writer):
         if self._pending is not None and self._pending.step != result.step:
             self._write(self._pending)
         self._pending = result
+        if result.step_end:
+            self._write(result)
+            self._pending = None
 
     def start_step(self, step_number, step) -> None:
         if self._pending is not None and self._pending.step < step_number:
@@ -44,14 +50,16 @@ class DisplacementsWriter(Writer):
             self._pending = None
 
     def close(self, status: int, message: str) -> None:
-        if self._pending is not None:
-            self._write(self._pending)
-            self._pending = None
-        self._fh.close()
+        try:
+            if self._pending is not None:
+                self._write(self._pending)
+                self._pending = None
+        finally:
+            self._fh.close()
 
     def _write(self, r: IncrementResult) -> None:
         ids = self.model.node_ids
         lines = [f"{r.step},{r.increment},{r.time:.17g},{int(n)},{x:.17g},{y:.17g},{u:.17g},{v:.17g}\n"
                  for n, (x, y), (u, v) in zip(ids, r.coords0, r.u)]
-        self._fh.writelines(lines)
+        self._fh.write("".join(lines))
         self._fh.flush()

@@ -5,7 +5,8 @@
     step,step_name,increment,time,dt,iterations,residual,cutbacks,failed,reason,load
 
 one row per converged increment (``failed`` = ``no``) and one per failed attempt
-(``failed`` = ``yes``, ``reason`` says why; ``time`` and ``dt`` are those attempted), in the
+(``failed`` = ``yes``, ``reason`` says why; ``time`` and ``dt`` are those attempted;
+``residual`` empty when the attempt's last residual is not finite), in the
 order they happened, flushed each time: a glance at the tail tells how a run is going.
 ``load``: the loads the step drives, reached at that increment
 (:func:`lagamine_py.solver.loads.driving_loads`), as ``label=value`` items separated by ``; ``
@@ -22,6 +23,7 @@ after the first resumed (step, increment) are dropped (see :mod:`lagamine_py.out
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from datetime import datetime, timezone
 
@@ -55,6 +57,16 @@ def parse_load_text(text: str) -> dict[str, float]:
     return {k: v for k, v in out.items() if k}
 
 
+def _ends_a_line(path) -> bool:
+    """Whether the file is empty or ends with a newline."""
+    with open(path, "rb") as fh:
+        fh.seek(0, 2)
+        if fh.tell() == 0:
+            return True
+        fh.seek(-1, 2)
+        return fh.read(1) == b"\n"
+
+
 def _now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
@@ -80,7 +92,11 @@ class StatusWriter(Writer):
         deck = self.model.name or "run"
         append = self.append
         self._sta_files = CsvFiles(self.outdir, {"sta": (f"{deck}.sta", STA_HEADER)}, append)
-        self._log_fh = open(self.outdir / f"{deck}.log", "a" if append else "w")
+        log_path = self.outdir / f"{deck}.log"
+        torn = append and log_path.exists() and not _ends_a_line(log_path)
+        self._log_fh = open(log_path, "a" if append else "w")
+        if torn:                        # a line cut by a kill: the resumed log starts afresh
+            self._log_fh.write("\n")
         self.step_name = ""
         self._attach_handler()
         heading = self.model.heading
@@ -132,7 +148,9 @@ class StatusWriter(Writer):
         """One failed attempt: a .sta row whose ``time`` is the end time the attempt aimed at
         (``time + dt``, comparable with the converged rows) and a log line with the message."""
         history = list(a.residual_history)
-        residual = history[-1] if history else None
+        # a residual that blew up to inf or NaN is left empty (the reason says "NaN"): tables
+        # hold no NaN for readers to trip on; the log keeps the whole history
+        residual = history[-1] if history and math.isfinite(history[-1]) else None
         self._sta_row(a.step, a.increment,
                       [a.step, a.step_name or self.step_name, a.increment, _g(a.time + a.dt),
                        _g(a.dt), a.iterations, _g(residual), a.cutbacks, "yes",

@@ -8,7 +8,8 @@ block of rows per increment, flushed before returning.
   ``slip``, ``none``).
 * ``contact_totals.csv``: one row per contact pair on every converged increment (cheap, and it
   makes the P(t), T(t) curves independent of the field-output frequency), same CONTACT=NO rule.
-* ``reactions.csv``: one row per imposed-displacement target on every converged increment.
+* ``reactions.csv``: one row per imposed-displacement target on every converged increment:
+  RF1, RF2 and RM6 (the moment of a tool's reference node, 0 for other nodes).
 
 Resuming a run (``append=True``, for ``lagamine-py run --restart``): the files are opened for
 appending, and when the first increment arrives the rows at or after its (step, increment) --
@@ -17,6 +18,7 @@ written after the restart point by the interrupted run -- are dropped (:func:`tr
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 from pathlib import Path
@@ -36,7 +38,9 @@ CONTACT_HEADER = ("step", "increment", "time", "element", "gauss", "x", "y",
                   "signed_slip", "slip_increment", "dissipation")
 # the energy the pair has dissipated by friction since the start of the run (ContactPoints.E)
 TOTALS_HEADER = ("step", "increment", "time", "contact", "P", "T", "dissipated_energy")
-REACTIONS_HEADER = ("step", "increment", "time", "nset", "RF1", "RF2")
+# RM6: the reaction moment of the rotation DOFs of the tools' reference nodes among the target's
+# nodes (0 for other nodes), appended so that older readers keep working
+REACTIONS_HEADER = ("step", "increment", "time", "nset", "RF1", "RF2", "RM6")
 
 
 def fmt(values) -> np.ndarray:
@@ -49,11 +53,19 @@ def trim_rows(path: Path, before: tuple[int, int]) -> None:
     """Keep the header and the rows of a CSV whose (step, increment) is below ``before``.
 
     A row with no readable increment (a failed attempt logged without one) counts as the last
-    of its step.  Rewritten atomically (tmp file + rename), and only when something is dropped.
+    of its step.  A last line without its end (a row torn by a kill) is dropped whatever it
+    holds, so that the resumed run does not glue its first row to it.  Rewritten atomically
+    (tmp file + rename), and only when something is dropped.
     """
     with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
+        text = fh.read()
+    torn = bool(text) and not text.endswith("\n")
+    if torn:
+        text = text[:text.rfind("\n") + 1]
+    rows = list(csv.reader(io.StringIO(text.replace("\0", ""), newline="")))
     if not rows:
+        if torn:
+            _rewrite(path, [])
         return
     i_step, i_inc = rows[0].index("step"), rows[0].index("increment")
 
@@ -64,11 +76,15 @@ def trim_rows(path: Path, before: tuple[int, int]) -> None:
             return math.inf
 
     kept = rows[:1] + [r for r in rows[1:] if (number(r, i_step), number(r, i_inc)) < tuple(before)]
-    if len(kept) == len(rows):
+    if len(kept) == len(rows) and not torn:
         return
+    _rewrite(path, kept)
+
+
+def _rewrite(path: Path, rows: list) -> None:
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "w", newline="") as fh:
-        csv.writer(fh, lineterminator="\n").writerows(kept)
+        csv.writer(fh, lineterminator="\n").writerows(rows)
     os.replace(tmp, path)
 
 
@@ -187,6 +203,12 @@ class ReactionsWriter(_CsvWriter):
     def increment(self, result: IncrementResult) -> None:
         self._begin(result)
         head = [str(result.step), str(result.increment), fmt(result.time)[()]]
-        self._rows.writerows(head + [name, *fmt(np.asarray(rf, float).ravel()[:2])]
+        self._rows.writerows(head + [name, *fmt(_rf3(rf))]
                              for name, rf in result.reactions_by_set.items())
         self._flush()
+
+
+def _rf3(rf) -> np.ndarray:
+    """(RF1, RF2, RM6) of a target's summed reactions (RM6 0 when not given)."""
+    a = np.asarray(rf, float).ravel()[:3]
+    return np.concatenate([a, np.zeros(3 - a.size)])

@@ -156,6 +156,9 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
             raise IterationLimit(f"no convergence in {settings.maxit} iterations "
                                  f"(|R|/F = {rel:.3e})", history)
         _check_divergence(history)
+        if not np.all(np.isfinite(ev.data)):       # else the solver calls it "singular"
+            raise NotANumber(f"non-finite tangent stiffness at iteration {k} (a material or "
+                             f"penalty value near the float range overflows?)", history)
         rhs = -Rf - (free.kfc_dot(ev.data, du_imposed) if imposing else 0.0)
         du_f = _linear_solve(solver, free, ev.data, rhs)
         energy = abs(float(du_f @ rhs))
@@ -267,9 +270,19 @@ def _linear_solve(solver, free, data, rhs):
     A = free.kff(data)
     try:
         solver.factor(A)
+        return solver.solve(rhs)
     except SingularMatrixError as exc:
-        raise SingularMatrixError(free.free[exc.dofs], exc.detail) from None
-    return solver.solve(rhs)
+        err = SingularMatrixError(free.free[exc.dofs], exc.detail, span=diagonal_span(A))
+        err.matrix = data                    # for the rigid-body diagnosis of the controller
+        raise err from None
+
+
+def diagonal_span(A) -> tuple[float, float]:
+    """(smallest, largest) nonzero magnitude of the diagonal of ``A`` (0, 0 when none): how
+    a singular verdict is judged (:class:`~lagamine_py.core.errors.SingularMatrixError`)."""
+    d = np.abs(A.diagonal())
+    d = d[np.isfinite(d) & (d > 0)]
+    return (float(d.min()), float(d.max())) if d.size else (0.0, 0.0)
 
 
 def _check_divergence(history: list[float]) -> None:

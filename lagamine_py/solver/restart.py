@@ -4,20 +4,34 @@ Saved with ``np.savez`` after every converged increment, atomically (a temporary
 over the previous one), in ``OUT/restart.npz``: the displacement, the committed state of every
 group, the reactions, the step index, the time within the step, the next time increment, the
 increment counters, the current step's resolved loads (:class:`~lagamine_py.solver.loads.StepLoads`)
-and the deck path.
+and the deck: its absolute path, the digest of its expanded text and the parameter values
+given on the command line (:class:`~lagamine_py.core.outdir.DeckIdentity`).  A restart of a
+deck whose digest differs is refused (:class:`RestartMismatch`, exit status 2): it would go on
+from the state of another model.
 """
 from __future__ import annotations
 
+import json
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
+
+from ..core.exits import EXIT_DECK, EXIT_OTHER
+from ..core.outdir import DeckIdentity
 
 FILE = "restart.npz"
 
 
 class RestartError(RuntimeError):
-    """The restart data is missing or does not fit the model."""
+    """The restart data is missing, damaged or does not fit the model (exit status 1)."""
+    status = EXIT_OTHER
+
+
+class RestartMismatch(RestartError):
+    """The restart data is of another deck, or of this deck before it changed (status 2)."""
+    status = EXIT_DECK
 
 
 def save(outdir: Path, data: dict[str, np.ndarray]) -> None:
@@ -32,21 +46,67 @@ def save(outdir: Path, data: dict[str, np.ndarray]) -> None:
 
 
 def load(outdir: Path) -> dict[str, np.ndarray]:
+    """The arrays of ``outdir/restart.npz``; :class:`RestartError` when it is missing or
+    cannot be read (cut, garbage, not an ``.npz``)."""
     path = Path(outdir) / FILE
     if not path.exists():
         raise RestartError(f"{outdir} holds no restart data ({FILE} is missing)")
-    with np.load(path, allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, AttributeError) as exc:
+        raise RestartError(f"{path} cannot be read ({type(exc).__name__}: {exc}): it is damaged; "
+                           f"run the deck again from the start") from None
+
+
+def saved_deck(outdir: Path) -> DeckIdentity | None:
+    """The deck recorded in ``outdir``'s restart data (path, digest, parameters), or None when
+    there is no readable restart data."""
+    try:
+        return deck_of(load(outdir))
+    except RestartError:
+        return None
+
+
+def deck_of(data: dict) -> DeckIdentity:
+    """The deck recorded in restart data (path, digest, parameters)."""
+    try:
+        params = json.loads(str(data.get("deck_parameters", "{}")) or "{}")
+    except ValueError:
+        params = {}
+    return DeckIdentity(str(data.get("deck", "")), "", str(data.get("deck_digest", "")),
+                        params if isinstance(params, dict) else {})
 
 
 def restart_deck(outdir: Path) -> Path | None:
     """The deck path recorded in ``outdir``'s restart data, or None."""
-    try:
-        data = load(outdir)
-    except RestartError:
-        return None
-    deck = str(data.get("deck", ""))
-    return Path(deck) if deck else None
+    deck = saved_deck(outdir)
+    return Path(deck.path) if deck is not None and deck.path else None
+
+
+def check_deck(outdir: Path, data: dict, deck: DeckIdentity) -> None:
+    """:class:`RestartMismatch` unless the restart ``data`` was saved by a run of ``deck``
+    as it is now (same digest of the expanded text); a deck known by its path only (a model
+    built by a script) is compared by path."""
+    saved_path = str(data.get("deck", ""))
+    saved = str(data.get("deck_digest", "")) if "deck_digest" in data else None
+    if deck.digest:
+        if saved is None:
+            raise RestartMismatch(f"{outdir / FILE} was written by an older lagamine-py that did "
+                                  f"not record which deck it ran: cannot tell that it is "
+                                  f"{deck.path}; run the deck again from the start")
+        if saved != deck.digest:
+            same = saved_path == deck.path
+            raise RestartMismatch(
+                f"{outdir / FILE} was saved by a run of {saved_path or 'another deck'}"
+                + (", which has changed since (its text, an included file or a parameter value "
+                   "differs)" if same else
+                   f", not of {deck.path} (their expanded texts differ)")
+                + "; a restart must resume the same model: restore that deck, or run the deck "
+                  "again from the start")
+    elif saved_path and deck.path and saved_path != deck.path:
+        raise RestartMismatch(f"{outdir / FILE} was saved by a run of {saved_path}, not of "
+                              f"{deck.path}")
 
 
 def pack_states(states: list[dict]) -> dict[str, np.ndarray]:

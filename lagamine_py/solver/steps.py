@@ -12,6 +12,12 @@ Group states are committed only on convergence.
 The run's messages (steps, Newton norms, cut-backs, the stop reason) go to the
 ``lagamine_py.solver`` logger (the STATUS writer copies them into ``OUT/<deck>.log``).
 
+The run claims its output directory first (:mod:`lagamine_py.core.outdir`): a lock (a second
+run into it is refused), the record of the deck that writes it, and the files of an earlier run
+cleared; a directory in use or holding another deck's results gives status 2 and nothing runs.
+A file that cannot be written (a full disk, no permission) stops the run with status 1 and a
+message; every increment converged before it is written.
+
 Ctrl-C (KeyboardInterrupt) stops the run between two operations: the writers are closed with
 status 130, every converged increment is written and the restart file holds the last one, so
 ``lagamine-py run --restart OUT`` goes on from there.  The :class:`Outcome` carries the lines a
@@ -20,6 +26,7 @@ pair at the last converged increment, and the wall time.
 """
 from __future__ import annotations
 
+import json
 import logging
 import sys
 import time as _time
@@ -30,7 +37,8 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import ConvergenceFailure, SingularMatrixError
-from ..core.exits import EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER
+from ..core.exits import EXIT_DECK, EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_OK, EXIT_OTHER
+from ..core import outdir as od
 from ..core.status import NONE, OPEN, SLIP, STICK
 from ..core.params import ParamError, validate_params
 from ..elements.base import StepContext
@@ -38,6 +46,8 @@ from ..model import CONTROL_PARAMS
 from .. import registry
 from ..output import DEFAULT_WRITERS, FailedAttempt, IncrementResult, default_writers
 from . import restart as rs
+from . import tools
+from .energy import EnergyAccount
 from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, driving_loads, step_loads
 from .newton import FLOOR_FRACTION, Settings, solve_increment
@@ -52,7 +62,8 @@ log = logging.getLogger("lagamine_py.solver")
 
 @dataclass
 class Outcome:
-    status: int        # 0 all steps done, 3 a step could not converge, 130 interrupted, 1 other
+    status: int        # 0 all steps done, 3 a step could not converge, 130 interrupted,
+                       # 2 the output directory refused or a restart of another deck, 1 other
     message: str
     summary: list[str] = field(default_factory=list)    # the lines a user reads at the end
 
@@ -85,26 +96,59 @@ def step_controls(step) -> dict[str, Any]:
 
 
 def run(model, outdir, writers=None, restart: bool = False, deck_path=None,
-        progress: bool = False, problem: Problem | None = None) -> Outcome:
+        progress: bool = False, problem: Problem | None = None,
+        overwrite: bool = False) -> Outcome:
     """Run every step of ``model``, writing into ``outdir``.
 
     ``writers``: a list of :class:`~lagamine_py.output.Writer` instances that observe every
     step (a script's own); by default the writers the steps' ``*OUTPUT, WRITERS=`` name (or
     the built-ins), each observing the steps that name it (:func:`run_writers`).
-    ``restart=True`` resumes from ``outdir/restart.npz``.  Typed failures give an
-    :class:`Outcome` with status 3; other exceptions close the writers (status 1) and propagate.
+    ``restart=True`` resumes from ``outdir/restart.npz``.  ``deck_path``: the deck of a model
+    without :attr:`~lagamine_py.model.Model.source` (built by a script).  ``overwrite``:
+    replace the results of another deck in ``outdir`` (see :mod:`lagamine_py.core.outdir`).
+
+    Typed failures give an :class:`Outcome` with status 3; an output directory in use or
+    holding another deck's results, or restart data of another deck, status 2; a file that
+    cannot be written, or restart data that cannot be read, status 1.  Other exceptions close
+    the writers (status 1) and propagate.
     """
     outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
-    if problem is None:
-        problem = build_problem(model)
-    if writers is None:
-        writers = run_writers(outdir, model, append=restart)
-    else:
-        writers = {f"#{k}": w for k, w in enumerate(writers)}
-        for w in writers.values():
-            w.append = w.append or restart
-    return Controller(model, problem, outdir, writers, deck_path, progress).run(restart)
+    deck = deck_identity(model, deck_path)
+    try:
+        hold = od.claim(outdir, deck, restart=restart, overwrite=overwrite)
+    except od.OutputDirError as exc:
+        return Outcome(EXIT_DECK, str(exc))
+    except OSError as exc:
+        return Outcome(EXIT_OTHER, f"cannot use the output directory {outdir}: {os_error_text(exc)}")
+    with hold:
+        if problem is None:
+            problem = build_problem(model)
+        if writers is None:
+            writers = run_writers(outdir, model, append=restart)
+        else:
+            writers = {f"#{k}": w for k, w in enumerate(writers)}
+            for w in writers.values():
+                w.append = w.append or restart
+        controller = Controller(model, problem, outdir, writers, deck, progress)
+        controller.notes = [f"{outdir}: {hold.note}"] if hold.note else []
+        return controller.run(restart)
+
+
+def deck_identity(model, deck_path=None) -> od.DeckIdentity:
+    """The identity of the deck a run computes: the model's source (path, digest, parameters)
+    when it was read from a deck, else ``deck_path`` (absolute) without a digest."""
+    src = model.source
+    if src is not None:
+        return od.DeckIdentity(src.path, model.name, src.digest, dict(src.parameters))
+    path = str(Path(deck_path).resolve()) if deck_path is not None else ""
+    return od.DeckIdentity(path, model.name or "")
+
+
+def os_error_text(exc: OSError) -> str:
+    """``[Errno 28] No space left on device: 'OUT/contact.csv'`` as a reader wants it:
+    ``OUT/contact.csv: No space left on device``."""
+    what = exc.strerror or str(exc)
+    return f"{exc.filename}: {what}" if exc.filename else what
 
 
 def run_writers(outdir: Path, model, append: bool = False) -> dict:
@@ -132,15 +176,16 @@ class Controller:
     ``#`` (given by a script) observes every step, the others the steps whose output names them
     and, if their class is ``always``, every step."""
 
-    def __init__(self, model, problem: Problem, outdir: Path, writers: dict, deck_path=None,
-                 progress: bool = False):
+    def __init__(self, model, problem: Problem, outdir: Path, writers: dict,
+                 deck: od.DeckIdentity | None = None, progress: bool = False):
         self.model, self.problem, self.outdir = model, problem, outdir
         self.writers = dict(writers)
         self.active = list(self.writers.values())      # the writers of the current step
-        self.deck_path = str(deck_path) if deck_path is not None else ""
+        self.deck = deck if deck is not None else deck_identity(model)
         self.total_time = float(sum(float(st.period) for st in model.steps))
         self.progress = Progress(enabled=progress, total=self.total_time)
         self.last_contacts: list = []     # the contact points of the last hand-out (summary)
+        self.last_tools: dict = {}        # and the tools' states
         self.wall0 = _time.perf_counter()
         n = problem.ndof
         self.u = np.zeros(n)
@@ -154,22 +199,36 @@ class Controller:
         self.foundations = list(model.foundations)
         self.has_contact = CONTACT in problem.kinds
         self._kernel_text = None          # what the log last said of the solid kernel
+        self.notes: list[str] = []        # said in the log once the writers started
+        self.time_reached = 0.0           # total time of the last converged increment
+        self.nodal = 2 * len(model.node_ids)      # the rotations of reference nodes follow
+        self.energy = EnergyAccount(n) if tracks_energy(model) else None
+        self._previous = None             # (u, states) before the last commit (energy)
+        self._last_energy: dict = {}      # the energy terms of the last hand-out
         self._advised: set[str] = set()   # the contact advice given (once per pair and what)
 
     # -- the run ---------------------------------------------------------------------------
     def run(self, restart: bool) -> Outcome:
         self.wall0 = _time.perf_counter()
-        resume = self._load_restart() if restart else None
-        self.progress.start(self.time_offset + (resume or {}).get("t", 0.0))
-        for w in self.writers.values():
-            w.start_run()
-        advice_log = logging.getLogger("lagamine_py.advice")
-        for notice in self.problem.notices:
-            advice_log.info(notice)
-        for advice in self.problem.warnings:
-            advice_log.warning(advice)
-        status, message = EXIT_OTHER, "interrupted"
         try:
+            resume = self._load_restart() if restart else None
+        except rs.RestartError as exc:         # nothing was written: the writers never started
+            return Outcome(exc.status, str(exc))
+        self.progress.start(self.time_offset + (resume or {}).get("t", 0.0))
+        status, message = EXIT_OTHER, "interrupted"
+        started = []
+        try:
+            for w in self.writers.values():
+                w.start_run()
+                started.append(w)
+            advice_log = logging.getLogger("lagamine_py.advice")
+            for notice in self.problem.notices:
+                advice_log.info(notice)
+            for advice in self.problem.warnings:
+                advice_log.warning(advice)
+                self._advised.add(_advice_key(advice))
+            for note in self.notes:                 # what claiming the directory did
+                log.warning(note)
             if resume is None:
                 self._hand_out_initial()
             first = resume["step"] if resume else 0
@@ -189,11 +248,40 @@ class Controller:
         except KeyboardInterrupt:
             status, message = EXIT_INTERRUPTED, self._interrupted_text()
             log.warning(message)
+        except OSError as exc:                  # a full disk, a file made read-only ...
+            status, message = EXIT_OTHER, self._write_failure_text(exc)
+            log.error(message)
+        except Exception as exc:                # a plugin that raised: say so, then propagate
+            status, message = EXIT_OTHER, f"stopped by an error: {type(exc).__name__}: {exc}"
+            raise
         finally:
             self.progress.end()
-            for w in self.writers.values():
-                w.close(status, message)
+            failure = self._close(started, status, message)
+            if failure is not None and status in (EXIT_OK, EXIT_DIVERGED):
+                status, message = EXIT_OTHER, self._write_failure_text(failure)
         return Outcome(status, message, self.summary())
+
+    def _close(self, writers, status, message) -> OSError | None:
+        """Close every writer that started, even when one fails (a full disk fails them all);
+        the first OSError is returned, any other exception raised once all are closed."""
+        first, other = None, None
+        for w in writers:
+            try:
+                w.close(status, message)
+            except OSError as exc:
+                first = first or exc
+            except Exception as exc:
+                other = other or exc
+        if other is not None:
+            raise other
+        return first
+
+    def _write_failure_text(self, exc: OSError) -> str:
+        done = (f"the files hold the increments that converged before (time {self.time_reached:g} "
+                f"reached)" if self.total_increments else "no increment converged")
+        restart = ((f"; once the cause is fixed go on with `lagamine-py run --restart "
+                    f"{self.outdir}`") if (self.outdir / rs.FILE).exists() else "")
+        return f"cannot write the results: {os_error_text(exc)}; {done}{restart}"
 
     def _time(self, t: float) -> float:
         """A total time as writers get it: :func:`round_time` on the run's time scale."""
@@ -224,8 +312,15 @@ class Controller:
                          f"T/P = {ratio}; {len(st)} points: {counts['open']} open, "
                          f"{counts['stick']} stick, {counts['slip']} slip"
                          + (f", {counts['none']} facing no foundation" if counts["none"] else ""))
-        pvd = sorted(self.outdir.glob("*.pvd"))
-        lines.append(f"results in {self.outdir}" + (f" (ParaView: {pvd[0]})" if pvd else ""))
+        for ts in self.last_tools.values():
+            if ts.ref_node is None and not np.any(ts.placement):
+                continue                    # a fixed foundation: its force is the contacts' above
+            node = f" (reference node {ts.ref_node})" if ts.ref_node is not None else ""
+            lines.append(f"tool {ts.name}{node}: force ({ts.force[0]:.6g}, {ts.force[1]:.6g}){force}, "
+                         f"moment {ts.moment:.6g}; moved by ({ts.placement[0]:.6g}, "
+                         f"{ts.placement[1]:.6g}), turned by {ts.placement[2]:.6g} rad")
+        pvd = self.outdir / f"{self.model.name or 'run'}.pvd"
+        lines.append(f"results in {self.outdir}" + (f" (ParaView: {pvd})" if pvd.exists() else ""))
         lines.append(f"wall time {_time.perf_counter() - self.wall0:.1f} s")
         return lines
 
@@ -233,6 +328,7 @@ class Controller:
         """Run step ``si`` (from its start, or from ``resume``): the increment loop."""
         step = self.model.steps[si]
         controls, settings, solver = self._setup_step(si, step)
+        self.states = self.problem.set_step_laws(si, self.states)   # *CHANGE CONTACT LAW
         if resume is not None:
             loads, last = resume["loads"], resume["last"]
             stepper = Stepper.start(step, controls, resume["t"], resume["dt"], resume["inc"])
@@ -252,8 +348,9 @@ class Controller:
             self._commit(conv, loads, free)
             t = stepper.accept(conv.iterations)
             self._hand_out(si, step, loads, stepper.inc, t, stepper.attempt, conv,
-                           stepper.cutbacks, stepper.period)
+                           stepper.cutbacks, stepper.period, stepper.finished)
             self._save_restart(si, loads, stepper, last)
+        self._log_step_energy(si)
         self._contact_advice(si)
         self.reached = loads.reached(self.model)
         self.time_offset += stepper.period
@@ -273,7 +370,7 @@ class Controller:
             alternating = alternation_advice(name, group, self.states[k])
             texts += [alternating] if alternating else []
             for text in texts:
-                key = text.split(" is ")[0] if " E/h " in text else name + " alternation"
+                key = _advice_key(text)
                 if key not in self._advised:
                     self._advised.add(key)
                     advice_log.warning(f"step {si + 1}: {text}")
@@ -318,7 +415,7 @@ class Controller:
             try:
                 return self._attempt(step, loads, free, solver, settings, controls, stepper, last)
             except (ConvergenceFailure, SingularMatrixError) as exc:
-                reason = self._failure_text(exc)
+                reason = self._failure_text(exc, free)
                 if isinstance(exc, SingularMatrixError) and not self.has_contact:
                     raise StepFailed(f"step {si + 1} ({step.name}) stopped at step time "
                                      f"{stepper.t:g} of {stepper.period:g}: {reason}") from None
@@ -349,21 +446,28 @@ class Controller:
         ctx = StepContext(nlgeom=bool(step.nlgeom), t_old=self.time_offset + t,
                           t_new=self.time_offset + t_new,
                           foundation_old=loads.motions(model, t),
-                          foundation_new=loads.motions(model, t_new))
+                          foundation_new=loads.motions(model, t_new),
+                          stabilisation=tools.stabilisation_context(problem, step, t, dt))
         problem.set_pressures(loads.pressures(model, t_new))
         f_ext = loads.f_ext(model, t_new, problem.ndof)
         u_c = loads.bc_values(model, t_new)
-        start, predicted = first_iterate(self.u, last, dt, controls["EXTRAPOLATION"], ctx)
+        start, predicted = first_iterate(
+            self.u, last, dt, controls["EXTRAPOLATION"],
+            tools.predictor_context(problem, ctx, self.u, free.constrained, u_c), self.nodal)
         watched = {k: problem.group_names[k] for k in problem.indices(CONTACT)}
         log.info("  increment at step time %g, dt %g", t_new, dt)
-        conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
-                               settings, floor=FLOOR_FRACTION * self.force_ref, u_start=start,
-                               predicted=predicted,
-                               observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+        # an overflow becomes inf or NaN, which Newton reports as a typed failure (NotANumber:
+        # the increment is cut back), not a warning on the terminal
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
+                                   settings, floor=FLOOR_FRACTION * self.force_ref,
+                                   u_start=start, predicted=predicted,
+                                   observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
         conv.f_ext, conv.ctx = f_ext, ctx
         return conv
 
     def _commit(self, conv, loads, free) -> None:
+        self._previous = (self.u, self.states)
         self.u = conv.u
         self.states = conv.states
         self.reaction = np.zeros_like(self.u)
@@ -373,27 +477,36 @@ class Controller:
         self.total_increments += 1
 
     # -- output ----------------------------------------------------------------------------
-    def _hand_out(self, si, step, loads, inc, t, dt, conv, cutbacks, T) -> None:
+    def _hand_out(self, si, step, loads, inc, t, dt, conv, cutbacks, T, step_end=False) -> None:
         model = self.model
-        u2 = self.u.reshape(-1, 2)
-        reaction2 = self.reaction.reshape(-1, 2)
-        by_set = {name: reaction2[np.asarray(nodes, np.int64)].sum(axis=0)
-                  for name, nodes in loads.bc_targets.items()}
+        u2 = self.u[:self.nodal].reshape(-1, 2)
+        reaction2 = self.reaction[:self.nodal].reshape(-1, 2)
+        by_set = tools.reactions_by_target(model, loads.bc_targets, self.reaction)
         freq = max(int(step.output.frequency), 1)
-        motions = loads.motions(model, t)
+        place = tools.placements(self.problem, loads, model, self.u, t)
+        ctx = self.problem.tool_context(conv.ctx, self.u, self.u)
+        contacts = self._contacts(u2, ctx)
+        tool_states = tools.tool_states(model, place, contacts)
+        energy = {}
+        if self.energy is not None:
+            u_old, states_old = self._previous
+            F = self.energy.applied_forces(self.problem, self.u, ctx, conv.f_ext, self.reaction)
+            energy = self.energy.commit(self.problem, u_old, self.u, states_old, self.states, F,
+                                        contacts, tool_states)
         result = IncrementResult(
             step=si + 1, step_name=step.name, increment=inc,
             time=self._time(self.time_offset + t), step_time=round_time(t, self.total_time),
             dt=dt, iterations=conv.iterations, residual=conv.residual,
             cutbacks=cutbacks, coords0=model.coords, u=u2.copy(), reaction=reaction2.copy(),
             reactions_by_set=by_set, cells=self._cells(step.nlgeom),
-            contacts=self._contacts(u2, conv.ctx),
-            foundations={name: np.asarray(spec.points, float) + motions[name]
-                         for name, spec in model.foundations.items()},
-            write_fields=(inc % freq == 0) or t >= T,
+            contacts=contacts, foundations=tools.foundation_points(model, place),
+            write_fields=(inc % freq == 0) or t >= T, step_end=bool(step_end),
             residual_history=list(conv.history),
-            loads=driving_loads(model, step, loads, t))
+            loads=driving_loads(model, step, loads, t), tools=tool_states, energy=energy)
         self.last_contacts = result.contacts
+        self.last_tools = result.tools
+        self._last_energy = result.energy
+        self.time_reached = result.time
         log.info("  converged: step %d increment %d, time %g, %d iterations, |R|/F %.3e",
                  si + 1, inc, result.time, conv.iterations, conv.residual)
         for w in self.active:
@@ -405,22 +518,25 @@ class Controller:
         """The state at t = 0 to the writers (:meth:`Writer.initial`): nothing loaded yet, the
         foundations where the deck puts them, the contact points as they start."""
         model, step = self.model, self.model.steps[0] if self.model.steps else None
-        u2 = self.u.reshape(-1, 2)
+        u2 = self.u[:self.nodal].reshape(-1, 2)
         ctx = StepContext(nlgeom=bool(step and step.nlgeom),
-                          foundation_old={name: np.zeros(2) for name in model.foundations},
-                          foundation_new={name: np.zeros(2) for name in model.foundations})
+                          foundation_old={name: np.zeros(3) for name in model.foundations},
+                          foundation_new={name: np.zeros(3) for name in model.foundations})
+        contacts = self._contacts(u2, ctx)
+        place = {name: np.zeros(3) for name in model.foundations}
         result = IncrementResult(
             step=1, step_name=step.name if step else "", increment=0, time=0.0, step_time=0.0,
             dt=0.0, iterations=0, residual=0.0, cutbacks=0, coords0=model.coords, u=u2.copy(),
-            reaction=self.reaction.reshape(-1, 2).copy(), reactions_by_set={},
-            cells=self._cells(bool(step and step.nlgeom)), contacts=self._contacts(u2, ctx),
+            reaction=self.reaction[:self.nodal].reshape(-1, 2).copy(), reactions_by_set={},
+            cells=self._cells(bool(step and step.nlgeom)), contacts=contacts,
             foundations={name: np.asarray(spec.points, float)
-                         for name, spec in model.foundations.items()})
+                         for name, spec in model.foundations.items()},
+            tools=tools.tool_states(model, place, contacts))
         for w in self.writers.values():
             w.initial(result)
 
     def _cells(self, nlgeom: bool = False) -> list:
-        u2 = self.u.reshape(-1, 2)
+        u2 = self.u[:self.nodal].reshape(-1, 2)
         return [self.problem.groups[k].cell_block(u2, self.states[k], bool(nlgeom))
                 for k in self.problem.indices(SOLID)]
 
@@ -428,10 +544,38 @@ class Controller:
         return [self.problem.groups[k].points(u2, self.states[k], ctx)
                 for k in self.problem.indices(CONTACT)]
 
-    def _failure_text(self, exc) -> str:
+    def _failure_text(self, exc, free=None) -> str:
         if isinstance(exc, SingularMatrixError):
-            return exc.describe(self.model.node_ids)
+            text = exc.describe(names=self.model.dof_names())
+            if exc.ill_conditioned and self.problem.warnings:     # the penalties' advice says why
+                text += "; " + "; ".join(self.problem.warnings)
+            elif exc.matrix is not None and free is not None:
+                why = tools.explain_singular(self.problem, exc.matrix, free.free, self.states)
+                if why:
+                    text += f": {why}"
+            return text
         return f"{exc.reason}: {exc}"
+
+    def _log_step_energy(self, si: int) -> None:
+        """At a step end: the stabilisation's energy against the work of the loads and tools
+        (a warning above 1 %), and the energy balance when the run tracks it."""
+        totals = [cp.stabilisation for cp in self.last_contacts]
+        work = None
+        if self.energy is not None:
+            e = self._last_energy
+            work = e.get("work")
+            if e:
+                log.info("  energy at the end of step %d: work %.6g = elastic %.6g + plastic %.6g "
+                         "+ friction %.6g + penalty %.6g + stabilisation %.6g; balance %.3g "
+                         "(%.3g %% of the work)", si + 1, e["work"], e["elastic"], e["plastic"],
+                         e["friction"], e["penalty"], e["stabilisation"], e["balance"],
+                         100 * e["relative"])
+        if self.model.steps[si].stabilisation is not None or any(totals):
+            stab = float(sum(totals))
+            share = f" ({100 * stab / abs(work):.3g} % of the work {work:.6g})" if work else ""
+            level = logging.WARNING if work and abs(stab) > 0.01 * abs(work) else logging.INFO
+            log.log(level, "  contact stabilisation: energy dissipated since the start %.6g%s",
+                    stab, share)
 
     def _report_failure(self, si, step, inc, t, dt, cutbacks, exc, reason) -> None:
         history = exc.history if isinstance(exc, ConvergenceFailure) else []
@@ -447,7 +591,9 @@ class Controller:
     # -- restart ---------------------------------------------------------------------------
     def _save_restart(self, si, loads: StepLoads, stepper: Stepper, last=None) -> None:
         state = stepper.state()
-        data = {"deck": np.array(self.deck_path), "ndof": np.array(self.problem.ndof),
+        data = {"deck": np.array(self.deck.path), "deck_digest": np.array(self.deck.digest),
+                "deck_parameters": np.array(json.dumps(self.deck.parameters)),
+                "ndof": np.array(self.problem.ndof),
                 "ngroups": np.array(len(self.problem.groups)), "step": np.array(si),
                 "t": np.array(state["t"]), "dt": np.array(state["dt"]),
                 "inc": np.array(state["inc"]),
@@ -458,10 +604,21 @@ class Controller:
             data["last_du"], data["last_dt"] = last[0], np.array(last[1])
         data.update(rs.pack_states(self.states))
         data.update(loads.to_arrays())
+        if self.energy is not None:
+            data.update(self.energy.to_arrays())
         rs.save(self.outdir, data)
 
     def _load_restart(self) -> dict:
         data = rs.load(self.outdir)
+        rs.check_deck(self.outdir, data, self.deck)
+        try:
+            return self._resume_from(data)
+        except (KeyError, ValueError, TypeError, IndexError) as exc:
+            raise rs.RestartError(f"{self.outdir / rs.FILE} is damaged or incomplete "
+                                  f"({type(exc).__name__}: {exc}); run the deck again from the "
+                                  f"start") from None
+
+    def _resume_from(self, data: dict) -> dict:
         if int(data["ndof"]) != self.problem.ndof or int(data["ngroups"]) != len(self.problem.groups):
             raise rs.RestartError("the restart data does not fit the model (DOFs or groups differ)")
         self.u = data["u"].copy()
@@ -470,8 +627,11 @@ class Controller:
         self.total_increments = int(data["total_increments"])
         self.time_offset = float(data["time_offset"])
         self.force_ref = float(data["force_ref"])
+        if self.energy is not None:
+            self.energy.from_arrays(data)
         loads = StepLoads.from_arrays(data)
         si, t = int(data["step"]), float(data["t"])
+        self.time_reached = self._time(self.time_offset + t)
         log.info("restart from step %d at step time %g", si + 1, t)
         if t >= loads.period * (1 - 1e-12):     # saved at a step end: go on with the next step
             self.reached = loads.reached(self.model)
@@ -480,6 +640,20 @@ class Controller:
         last = (data["last_du"].copy(), float(data["last_dt"])) if "last_du" in data else None
         return {"step": si, "loads": loads, "t": t, "dt": float(data["dt"]),
                 "inc": int(data["inc"]), "last": last}
+
+
+def tracks_energy(model) -> bool:
+    """Whether a run of ``model`` keeps the energy balance: a ``*CHECK, TYPE=ENERGY`` or a step
+    whose ``*OUTPUT, WRITERS=`` names ENERGY."""
+    return (any(str(c.get("type", "")).upper() == "ENERGY" for c in model.checks)
+            or any("ENERGY" in step.output.writers for step in model.steps))
+
+
+def _advice_key(text: str) -> str:
+    """What a piece of contact advice is about, said once per run: the pair and the penalty
+    with its value (``contact A->F: KT = 1e+09``), or the pair's alternation."""
+    head = text.split(" is ")[0]
+    return head if " E/h " in text else text.split(":")[0] + " alternation"
 
 
 def _resume_or_none(resume):
