@@ -538,6 +538,12 @@ class ContactGroup(Group):
         d, _, _ = self._penetration(self._x0, np.zeros(2), 0.0, False)
         return d
 
+    def point_lengths(self) -> np.ndarray:
+        """(g,) the reference corner-to-corner length of each point's face (the length PTOL of
+        METHOD=AUGMENTED is relative to)."""
+        x = self._x0
+        return np.repeat(np.linalg.norm(x[:, 1] - x[:, 0], axis=1), self.nq)
+
     def chain_neighbours(self) -> tuple[np.ndarray, np.ndarray]:
         """The points before and after each point along the surface (g,) each, -1 at an end:
         within a face in the order of xi (from its first corner to its second), across faces

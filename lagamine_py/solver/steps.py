@@ -47,6 +47,7 @@ from .. import registry
 from ..output import DEFAULT_WRITERS, FailedAttempt, IncrementResult, default_writers
 from . import restart as rs
 from . import tools
+from .augmented import augmentation_limit, augmented_start
 from .energy import EnergyAccount
 from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, driving_loads, step_loads
@@ -458,11 +459,29 @@ class Controller:
         log.info("  increment at step time %g, dt %g", t_new, dt)
         # an overflow becomes inf or NaN, which Newton reports as a typed failure (NotANumber:
         # the increment is cut back), not a warning on the terminal
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
-                                   settings, floor=FLOOR_FRACTION * self.force_ref,
-                                   u_start=start, predicted=predicted,
-                                   observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+        contact = problem.indices(CONTACT)
+        states, solves, iterations = self.states, 0, 0
+        while True:
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                conv = solve_increment(problem, solver, free, self.u, states, ctx, u_c, f_ext,
+                                       settings, floor=FLOOR_FRACTION * self.force_ref,
+                                       u_start=start, predicted=predicted,
+                                       observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+            solves, iterations = solves + 1, iterations + conv.iterations
+            # METHOD=AUGMENTED: solve again with the multipliers of this solve (augmented.py)
+            again, ratio = augmented_start(problem, contact, states, conv.states)
+            if again is None:
+                if solves > 1:
+                    log.info("  augmented Lagrangian: %d solves, %d iterations, largest change "
+                             "%.3g PTOL", solves, iterations, ratio)
+                break
+            if solves >= augmentation_limit(problem, contact):
+                log.warning("  augmented Lagrangian: AUGMAX = %d solves reached, the constraints "
+                            "still %.3g times PTOL away", solves, ratio)
+                break
+            log.info("  augmentation %d: the constraints %.3g times PTOL away", solves, ratio)
+            states, start, predicted = again, conv.u, None
+        conv.iterations = iterations           # the cost of the increment: every solve's
         conv.f_ext, conv.ctx = f_ext, ctx
         return conv
 
