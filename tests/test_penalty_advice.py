@@ -6,10 +6,13 @@ The graded gmsh mesh of docs/examples/meshes (Hertz, h = 0.04 mm at the contact,
 carries its own *CHECK HERTZ: its error is the independent measure of "correct"."""
 from pathlib import Path
 
+import numpy as np
+
 from lagamine_py.checks.base import evaluate_checks
 from lagamine_py.cli import main
+from lagamine_py.core.status import OPEN, SLIP, STICK
 from lagamine_py.deck import load_deck
-from lagamine_py.solver.problem import PENALTY_RANGE
+from lagamine_py.solver.problem import PENALTY_RANGE, alternation_advice
 
 from runner import DECKS
 
@@ -83,3 +86,40 @@ def test_advice_is_printed_once_per_run_in_one_process(tmp_path, capsys):
         assert main(["run", str(deck), "-o", str(tmp_path / f"out{k}"), "-q"]) == 0
         err = capsys.readouterr().err
         assert err.count("KT = 1e+09 is") == 1 and "Logging error" not in err
+
+
+def _chain(rule):
+    """Three 3-node faces in a row along y = 0 (corners shared), points in the order of x."""
+    from lagamine_py.elements.contact import ContactGroup
+    from lagamine_py.foundation import Foundation
+    from lagamine_py.laws.coulomb import Coulomb
+    coords = np.array([[0, 0], [1, 0], [2, 0], [3, 0], [0.5, 0], [1.5, 0], [2.5, 0]], float)
+    faces = np.array([[0, 1, 4], [1, 2, 5], [2, 3, 6]])
+    return ContactGroup("c", faces, [1, 2, 3], [1, 1, 1], coords,
+                        Foundation([[-5.0, -1.0], [0.0, -1.0], [5.0, -1.0]]), "F",
+                        Coulomb(KP=1e3, KT=1e3, PHI=0.3), gauss=rule)
+
+
+def test_alternation_is_reported_where_it_happens_and_not_for_round_off():
+    grp = _chain(3)
+    ng = grp.ng
+    base = {"p": np.full(ng, 100.0), "tau": np.zeros(ng), "status": np.full(ng, SLIP, np.int8)}
+    assert alternation_advice("c", grp, base) is None
+    # frictionless contact: tau is round-off of either sign, nothing to report
+    noise = dict(base, tau=1e-12 * (-1.0) ** np.arange(ng))
+    assert alternation_advice("c", grp, noise) is None
+    flips = dict(base, tau=30.0 * (-1.0) ** np.arange(ng))
+    text = alternation_advice("c", grp, flips)
+    assert "7 slipping point(s) with tau against both neighbours" in text
+    assert "GAUSS=LINEAR removes it" in text
+    gap = dict(base, p=np.where(np.arange(ng) == 4, 0.0, 100.0),
+               status=np.where(np.arange(ng) == 4, OPEN, STICK).astype(np.int8))
+    assert "1 point(s) open between closed neighbours" in alternation_advice("c", grp, gap)
+    # across faces: the last point of face 0 and the first of face 1 are neighbours
+    prev, nxt = grp.chain_neighbours()
+    assert nxt[2] == 3 and prev[3] == 2 and prev[0] == -1 and nxt[ng - 1] == -1
+    text = alternation_advice("c", _chain("LINEAR"), dict(
+        base, p=np.array([100.0, 0.0, 100.0, 100.0, 100.0, 100.0]),
+        status=np.array([STICK, OPEN, STICK, STICK, STICK, STICK], np.int8),
+        tau=np.zeros(6)))
+    assert "GAUSS=LINEAR removes" not in text and "finer mesh" in text
