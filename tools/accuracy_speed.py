@@ -314,8 +314,8 @@ def scene_hertz_classic(work: Path, jobs: int) -> list[dict]:
 #: infinite), stick zone edges in units of the Hertz a_H at Q = phi P / 2
 PARTIAL_REF = {"DRY": (-0.825, 0.032), "SMOOTH": (-0.676, 0.754)}
 PARTIAL_PHI = 0.3
-PARTIAL_BASE = {"MESH": "medium", "GAUSS": "3", "KP": "8.4e7", "PRESS": "DRY", "DT": "0.05",
-                "TRAVEL": "0.004"}
+PARTIAL_BASE = {"MESH": "medium", "GAUSS": "3", "KP": "8.4e7", "PRESS": "DRY", "LAW": "penalty",
+                "PTOL": "1e-3", "DT": "0.05", "TRAVEL": "0.004"}
 
 
 def partial_error(row: dict) -> dict:
@@ -362,7 +362,11 @@ def partial_points() -> list[dict[str, str]]:
                 continue
             base = dict(PARTIAL_BASE, MESH=mesh, KP=f"{kp:g}", PRESS=press)
             pts.append(base)
-            pts += vary(base, GAUSS=("2", "LINEAR"), KP=(f"{10 * kp:g}",), DT=("0.025",))
+            pts += vary(base, GAUSS=("2", "LINEAR"), KP=(f"{10 * kp:g}", f"{100 * kp:g}"),
+                        DT=("0.025",))
+            pts += [dict(base, LAW="augmented", PTOL=t, GAUSS=g) for t in ("1e-3", "1e-4")
+                    for g in ("3", "LINEAR")]
+            pts.append(dict(base, KP=f"{100 * kp:g}", GAUSS="LINEAR"))
     return unique(pts)
 
 
@@ -373,7 +377,7 @@ def scene_partial_slip(work: Path, jobs: int) -> list[dict]:
     rows = run_points(STUDY / "partial_slip_study.dat", pts, work / "partial_slip", jobs)
     for r in rows:
         r.update(partial_error(r) if r["status"] == 0 else {"error": math.nan})
-    names = ["MESH", "GAUSS", "KP", "PRESS", "DT", "TRAVEL"]
+    names = ["MESH", "GAUSS", "KP", "PRESS", "LAW", "PTOL", "DT", "TRAVEL"]
     return write_scene("partial_slip", rows, names, PARTIAL_BASE)
 
 
@@ -589,7 +593,7 @@ def main(argv=None) -> int:
     for scene, rows in all_rows.items():
         for t in TARGETS:
             best = cheapest(rows, t)
-            print(f"{scene}: {t:.1%}: " + (f"{best['label']} ({best['error']:.3g}, "
+            print(f"{scene}: {t * 100:g} %: " + (f"{best['label']} ({best['error']:.3g}, "
                                           f"{best['cpu_s']:.2f} s CPU)" if best else "none"))
     return 0
 

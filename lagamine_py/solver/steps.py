@@ -462,11 +462,22 @@ class Controller:
         contact = problem.indices(CONTACT)
         states, solves, iterations = self.states, 0, 0
         while True:
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-                conv = solve_increment(problem, solver, free, self.u, states, ctx, u_c, f_ext,
-                                       settings, floor=FLOOR_FRACTION * self.force_ref,
-                                       u_start=start, predicted=predicted,
-                                       observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+            try:
+                with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                    trial = solve_increment(
+                        problem, solver, free, self.u, states, ctx, u_c, f_ext, settings,
+                        floor=FLOOR_FRACTION * self.force_ref, u_start=start, predicted=predicted,
+                        observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+            except ConvergenceFailure as exc:
+                if solves == 0:
+                    raise
+                # an augmentation that does not converge (stick/slip changing with the
+                # multipliers): the increment keeps the last converged solve, and says so
+                log.warning("  augmented Lagrangian: solve %d did not converge (%s); the "
+                            "increment keeps solve %d, its constraints %.3g times PTOL away",
+                            solves + 1, str(exc).splitlines()[0], solves, ratio)
+                break
+            conv = trial
             solves, iterations = solves + 1, iterations + conv.iterations
             # METHOD=AUGMENTED: solve again with the multipliers of this solve (augmented.py)
             again, ratio = augmented_start(problem, contact, states, conv.states)
