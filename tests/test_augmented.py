@@ -109,3 +109,30 @@ def test_partial_slip_sticking_points_move_with_the_flat(tmp_path):
         lags[name] = float(np.abs(dx - travel).max())
     assert lags["augmented"] <= ptol * h * (1 + 1e-6)
     assert lags["penalty"] > 3 * ptol * h and lags["penalty"] > 10 * lags["augmented"]
+
+
+def test_an_augmentation_that_fails_keeps_the_converged_solve(tmp_path, monkeypatch):
+    """The second solve of every increment made to diverge: the increment keeps the first
+    (converged) solve and the log says so; the run does not cut back.  The first solve failing
+    is an ordinary failure (cut-back)."""
+    from lagamine_py.core.errors import DivergingResidual
+    from lagamine_py.solver import steps
+
+    real = steps.solve_increment
+
+    def second_fails(problem, solver, free, u_old, states, *args, **kw):
+        # a solve with multipliers (an increment's first starts from none: one increment here)
+        if any(np.any(np.asarray(s.get("an", 0.0)) != 0) for s in states):
+            raise DivergingResidual("made to fail", [1.0])
+        return real(problem, solver, free, u_old, states, *args, **kw)
+
+    monkeypatch.setattr(steps, "solve_increment", second_fails)
+    text = GRADED.read_text().replace("KP=<KP>, KT=<KP>, PHI=0",
+                                      "KP=<KP>, KT=<KP>, PHI=0, METHOD=AUGMENTED, PTOL=1e-4")
+    out = _run(tmp_path, text, "fails", "KP=1e8", files=[GRADED.parent / "hertz_quarter.msh"])
+    log = (out / "fails.log").read_text()
+    assert "solve 2 did not converge (made to fail); the increment keeps solve 1" in log
+    assert "attempt failed" not in log
+    # the penalty answer: the penetration of KP = 1e8 alone
+    r = _last(out)
+    assert float(np.max(-r["gap"][r["status"] != "open"])) > 10 * 1e-4 * H_CONTACT

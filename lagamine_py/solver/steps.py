@@ -460,7 +460,7 @@ class Controller:
         # an overflow becomes inf or NaN, which Newton reports as a typed failure (NotANumber:
         # the increment is cut back), not a warning on the terminal
         contact = problem.indices(CONTACT)
-        states, solves, iterations = self.states, 0, 0
+        states, solves, iterations, ratio = self.states, 0, 0, 0.0
         while True:
             try:
                 with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
