@@ -804,11 +804,12 @@ def contact_configs() -> list[ContactConfig]:
                     for law in laws:
                         j = seen[nlgeom]
                         seen[nlgeom] += 1
-                        # the forms' branches need free points: their configs alternate held
-                        # and free on their own count (the cycle of j may hold them all)
+                        # each form law needs free points and held ones (a frozen STICK point
+                        # leaves the cone): its configs alternate on its own count (the cycle
+                        # of j may hold them all)
                         hold = ((j // 3) % 2 == 1 if law in CONTACT_LAWS else
-                                seen["forms"] % 2 == 1)
-                        seen["forms"] += law not in CONTACT_LAWS
+                                seen["form " + law] % 2 == 1)
+                        seen["form " + law] += law not in CONTACT_LAWS
                         out.append(ContactConfig(
                             nfn, gauss, ax, nlgeom, law, substeps=(1, 3, "AUTO", 2)[j % 4],
                             theta=(1.0, 0.5, 0.0)[(j // 4) % 3], hold=hold,
@@ -1084,6 +1085,10 @@ def _contact_failures() -> Iterator[Batch]:
         ("degenerate face", CONTACT_LAWS["plain"], None, "degenerate",
          "failure: degenerate face"),
         ("non-finite", CONTACT_LAWS["plain"], None, "nan", "failure: non-finite"),
+        # exactly on the cap (B + phi p = TAUMAX, in binary), pressed 0.002 deeper while sliding
+        # 0.0005 on: the cap does not rise with p, the point slides on it (KT dv < phi dp)
+        ("on the cap exactly, pressure rising",
+         dict(KP=1e3, KT=5e2, PHI=0.25, B=0.5, TAUMAX=8.0), None, "press", None),
     ]
     for i, (name, params, hold, broken, expect) in enumerate(cases):
         # a face of zero length is degenerate under NLGEOM only (small strain: the reference face)
@@ -1094,7 +1099,9 @@ def _contact_failures() -> Iterator[Batch]:
             # every face pressed 0.03 deep, sliding 0.01 against tau on the cone
             u_old = np.concatenate([_rigid(x, n, t, -0.03 - g0, 0.0, 0.0) for x, n, t, g0 in
                                     zip(x0, normals, tangents, _gaps(x0, normals))])
-            u_new = u_old + np.concatenate([np.tile(-0.01 * t, (nfn, 1)) for t in tangents])
+            press, slide = (0.002, 0.0005) if broken == "press" else (0.0, 0.01)
+            u_new = u_old + np.concatenate([np.tile(-press * n - slide * t, (nfn, 1))
+                                            for n, t in zip(normals, tangents)])
             state = ref.init_state()
             state["p"][:] = law.kp * 0.03
             state["lam"][:] = 0.01
@@ -1167,7 +1174,8 @@ def contact_required() -> list[str]:
            "stabilised, damped points",
            "failure: outside the cone", "raises: snap-back", "failure: degenerate face",
            "failure: non-finite", "no failure: classical held STICK",
-           "no failure: predictor stays on the cone"]
+           "no failure: predictor stays on the cone",
+           "no failure: on the cap exactly, pressure rising"]
     req += ["exponential form, Newton return", "Newton's first step leaves its bracket (bisection)",
             "dissipation on several panels", "return crosses a table row",
             "return crosses several table rows", "slip beyond the last table row (flat)",
