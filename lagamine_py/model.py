@@ -103,7 +103,7 @@ class ContactSpec:
     surface: str
     foundation: str
     law: str
-    gauss: int = 3
+    gauss: int | str = 3           # 2, 3, LOBATTO2, LOBATTO3 (elements.contact.RULES)
     where: Where | None = None
     master: str | None = None
     search: float | None = None

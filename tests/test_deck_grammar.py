@@ -84,7 +84,7 @@ def test_reference_lists_every_keyword():
     ref = reference_markdown()
     for name in KEYWORDS:
         assert f"`*{name}`" in ref
-    assert "`NLGEOM=` (YES/NO, default NO)" in ref and "`GAUSS=` (2/3, default 3)" in ref
+    assert "`NLGEOM=` (YES/NO, default NO)" in ref and "`GAUSS=` (2/3/LOBATTO2/LOBATTO3/LINEAR, default 3)" in ref
 
 
 # ---------------------------------------------------------------- a complete deck

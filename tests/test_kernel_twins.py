@@ -633,12 +633,31 @@ CONTACT_LAWS = {
     "classical hardening": dict(KP=1000.0, KT=500.0, PHI=0.3, B=1.0, HB=20.0,
                                 INDICATOR="CLASSICAL"),
 }
+#: the hardening forms and the shear limit, on a subset of the configurations (NEW_LAW_CONFIGS)
+FORM_LAWS = {
+    # a slide of 0.1 is 10 LAMC: dissipation panels
+    "run-in": dict(KP=1000.0, KT=500.0, PHI=0.3, B=1.0, PHI_INF=0.6, LAMC=0.01),
+    # concave residual (softening exponential) with phi's clipping kink at 0.15: Newton from the
+    # left overshoots past the kink, the safeguard bisects
+    "wear": dict(KP=1000.0, KT=500.0, PHI=0.3, B=2.0, B_INF=0.2, LAMC_B=0.004, HPHI=-2.0),
+    "table": {"KP": 1000.0, "KT": 500.0, "CONTACT LAW TABLE": (
+        (0.0, 0.3, 1.0), (0.01, 0.5, 0.5), (0.03, 0.4, 2.0), (0.06, 0.2, 0.0))},
+    # p up to 20, B + phi p up to 6: some points on the cap, some below; B + phi p = TAUMAX
+    # exactly at p = 8, lam = 0 (set by contact_state)
+    "cap": dict(KP=1000.0, KT=500.0, PHI=0.25, B=1.0, HB=15.0, TAUMAX=3.0),
+    "cap, run-in": dict(KP=1000.0, KT=500.0, PHI=0.25, B=1.0, PHI_INF=0.5, LAMC=0.02,
+                        TAUMAX=3.0),
+    "classical, cap": dict(KP=1000.0, KT=500.0, PHI=0.25, B=1.0, HB=15.0, TAUMAX=3.0,
+                           INDICATOR="CLASSICAL"),
+}
+ALL_CONTACT_LAWS = {**CONTACT_LAWS, **FORM_LAWS}
 AX_SHIFT = np.array([5.0, 0.0])          # axisymmetric groups sit at r in [1.4, 8.6]
 FACE_LENGTH = 0.3
 
 
 def _kinks(law) -> list[float]:
-    return [-v / h for v, h in ((law.b, law.hb), (law.phi, law.hphi)) if h < 0]
+    """Where B or phi's derivative jumps: clipping kinks, table rows."""
+    return list(law.breaks)
 
 
 def contact_faces(rng, nfn: int):
@@ -717,9 +736,11 @@ def contact_state(law, kinds, nq, rng):
     for k in _kinks(law):
         near = rng.random(ng) < 0.2
         lam = np.where(near, k - 10 ** rng.uniform(-5, -1.5, ng), lam)
-    b, _ = law.adhesion(lam)
-    phi, _ = law.friction(lam)
-    radius = b + phi * p
+    if law.taumax is not None:      # on the cap exactly: B + phi p = TAUMAX at lam = 0
+        exact = rng.random(ng) < 0.15
+        p = np.where(exact, (law.taumax - law.b) / law.phi, p)
+        lam = np.where(exact, 0.0, lam)
+    radius = law.radius(lam, p)
     pick = rng.random(ng)
     tau = np.where(pick < 0.4, radius * rng.choice([-1.0, 1.0], ng),
                    np.where(pick < 0.9, radius * rng.uniform(-1, 1, ng), 0.0))
@@ -759,24 +780,51 @@ class ContactConfig:
                 f"{' tool' if self.tool else ''}{' stabilised' if self.stab else ''}")
 
 
+#: (face nodes, Gauss points, axisymmetric, NLGEOM) of the FORM_LAWS: the forms are the law's
+#: business, the element's variants are covered by CONTACT_LAWS
+NEW_LAW_CONFIGS = ((3, 3, False, False), (3, 3, True, True), (2, 2, False, True),
+                   (3, 2, True, False))
+LOBATTO_CONFIGS = ((3, "LOBATTO3", False, True), (3, "LOBATTO3", True, False),
+                   (2, "LOBATTO2", True, True))
+
+
 def contact_configs() -> list[ContactConfig]:
-    """Every face type x Gauss rule x PE/AX x kinematics, each with every law; for each
-    kinematics every pair of SUBSTEPS and THETA comes in turn, the holds and translations
-    cycle too."""
+    """Every face type x Gauss rule x PE/AX x kinematics, each with every law of CONTACT_LAWS,
+    and the FORM_LAWS on NEW_LAW_CONFIGS; for each kinematics every pair of SUBSTEPS and THETA
+    comes in turn, the holds and translations cycle too."""
     out = []
     seen = Counter()
     for nfn in (2, 3):
         for gauss in (2, 3):
             for ax in (False, True):
                 for nlgeom in (False, True):
-                    for law in CONTACT_LAWS:
+                    laws = list(CONTACT_LAWS)
+                    if (nfn, gauss, ax, nlgeom) in NEW_LAW_CONFIGS:
+                        laws += list(FORM_LAWS)
+                    for law in laws:
                         j = seen[nlgeom]
                         seen[nlgeom] += 1
+                        # each form law needs free points and held ones (a frozen STICK point
+                        # leaves the cone): its configs alternate on its own count (the cycle
+                        # of j may hold them all)
+                        hold = ((j // 3) % 2 == 1 if law in CONTACT_LAWS else
+                                seen["form " + law] % 2 == 1)
+                        seen["form " + law] += law not in CONTACT_LAWS
                         out.append(ContactConfig(
                             nfn, gauss, ax, nlgeom, law, substeps=(1, 3, "AUTO", 2)[j % 4],
-                            theta=(1.0, 0.5, 0.0)[(j // 4) % 3], hold=(j // 3) % 2 == 1,
+                            theta=(1.0, 0.5, 0.0)[(j // 4) % 3], hold=hold,
                             translation=(0, 1, 2)[(j // 2) % 3], seed=len(out),
                             tool=j % 5 in (1, 3), stab=j % 7 in (2, 5)))
+    # the Gauss-Lobatto rules (points at the nodes; LINEAR has no kernel: tests/test_contact_rules)
+    for nfn, gauss, ax, nlgeom in LOBATTO_CONFIGS:
+        for law in CONTACT_LAWS:
+            j = seen[nlgeom]
+            seen[nlgeom] += 1
+            out.append(ContactConfig(nfn, gauss, ax, nlgeom, law,
+                                     substeps=(1, 3, "AUTO", 2)[j % 4],
+                                     theta=(1.0, 0.5, 0.0)[(j // 4) % 3], hold=(j // 3) % 2 == 1,
+                                     translation=(0, 1, 2)[(j // 2) % 3], seed=len(out),
+                                     tool=j % 5 in (1, 3), stab=j % 7 in (2, 5)))
     return out
 
 
@@ -830,11 +878,13 @@ def _contact_run(grp, u_new, u_old, state, ctx, tangent):
 
 def contact_batches() -> Iterator[Batch]:
     for cfg in contact_configs():
-        ref, fast, rng, x0, kinds, normals, tangents = _contact_pair(cfg, CONTACT_LAWS[cfg.law])
+        ref, fast, rng, x0, kinds, normals, tangents = _contact_pair(cfg,
+                                                                     ALL_CONTACT_LAWS[cfg.law])
         rec = Recorder(ref.law)
-        state = contact_state(ref.law, kinds, cfg.gauss, rng)
+        state = contact_state(ref.law, kinds, ref.nq, rng)
         u_old, u_new = contact_motion(rng, x0, kinds, normals, tangents,
-                                      big_slides=cfg.law == "softening")
+                                      big_slides=cfg.law in ("softening", "run-in", "wear",
+                                                             "table", "cap, run-in"))
         c_old = [np.zeros(2), np.array([1e-3, 0.0]), np.array([1e-3, -1e-3])][cfg.translation]
         c_new = [np.zeros(2), np.array([3e-3, 0.0]), np.array([2e-3, 5e-4])][cfg.translation]
         if cfg.tool and not cfg.ax:          # the tool turns about its reference point too
@@ -886,7 +936,7 @@ def _coulomb_branches(law: Coulomb, rec) -> Counter:
     tau0, p0 = np.where(recon, 0.0, tau_old), np.where(recon, 0.0, p_old)
     b0, hb0 = law.adhesion(lam0)
     phi0, hphi0 = law.friction(lam0)
-    radius0 = b0 + phi0 * p0
+    radius0 = law.radius(lam0, p0)
     on = active & (np.abs(tau0) - radius0 >= -layout.ON_SURFACE_RTOL
                    * (radius0 + np.abs(tau0)))
     p1, lam1, status = new["p"], new["lam"], new["status"]
@@ -908,13 +958,22 @@ def _coulomb_branches(law: Coulomb, rec) -> Counter:
     c["slip, softening (H < 0)"] += int((slip & (h1 < 0)).sum())
     kinks = _kinks(law)
     crossed = [slip & (lam0 < k) & (lam1 > k) for k in kinks]
-    for name, x in zip(("B", "phi") if law.hb < 0 else ("phi",), crossed):
-        c[f"return crosses the {name} kink"] += int(x.sum())
-    if len(crossed) == 2:
-        c["return crosses both kinks"] += int((crossed[0] & crossed[1]).sum())
-    if kinks:
-        c["slip past a kink (clipped)"] += int((slip & (lam0 >= min(kinks))).sum())
-        c["dissipation over kinks"] += int((slip & np.any(crossed, axis=0)).sum())
+    if law.values["CONTACT LAW TABLE"] is not None:
+        n_crossed = np.sum(crossed, axis=0)
+        c["return crosses a table row"] += int((n_crossed == 1).sum())
+        c["return crosses several table rows"] += int((n_crossed > 1).sum())
+        c["slip beyond the last table row (flat)"] += int((slip & (lam0 >= kinks[-1])).sum())
+    else:
+        names = [n for n, f in (("B", law.b_form), ("phi", law.phi_form)) if f.breaks]
+        for name, x in zip(names, crossed):
+            c[f"return crosses the {name} kink"] += int(x.sum())
+        if len(crossed) == 2:
+            c["return crosses both kinks"] += int((crossed[0] & crossed[1]).sum())
+        if kinks:
+            c["slip past a kink (clipped)"] += int((slip & (lam0 >= min(kinks))).sum())
+            c["dissipation over kinks"] += int((slip & np.any(crossed, axis=0)).sum())
+    c.update(_form_branches(law, state, p0, tau0, lam0, p1, lam1, slip, stick, dv_c, frozen,
+                            on, free, contact))
     c["on the surface, loading"] += int((free & on & slip & (np.sign(tau_tr) == sig0)).sum())
     c["on the surface, unloading"] += int((free & on & stick).sum())
     c["on the surface, reversed through the cone"] += int((free & on & slip
@@ -935,6 +994,40 @@ def _coulomb_branches(law: Coulomb, rec) -> Counter:
         c["held STICK, would slip"] += int(((hold == STICK) & (unheld["status"] == SLIP)).sum())
         c["held SLIP, would stick"] += int(((hold == SLIP) & (unheld["status"] == STICK)).sum())
         c["held SLIP, unloading (dlam < 0)"] += int(((hold == SLIP) & (lam1 < lam0)).sum())
+    return c
+
+
+def _form_branches(law, state, p0, tau0, lam0, p1, lam1, slip, stick, dv_c, frozen, on, free,
+                   contact) -> Counter:
+    """The branches of the exponential forms and of TAUMAX (FORM_LAWS)."""
+    c = Counter()
+    forms = (law.b_form, law.phi_form)
+    if any(f.smooth for f in forms):
+        c["exponential form, Newton return"] += int(slip.sum())
+        # the first Newton step from lam0 leaves the bracket [lam0, min(break, lam0 + Lmax)]
+        tau_tr = tau0 + law.kt * dv_c
+        b0, hb0 = law.adhesion(lam0)
+        phi0, hphi0 = law.friction(lam0)
+        r0 = np.abs(tau_tr) - b0 - phi0 * p1
+        step = r0 / (law.kt + hb0 + hphi0 * p1)
+        ahead = np.array([min([k for k in law.breaks if k > x], default=np.inf) for x in lam0])
+        lmax = (np.abs(tau_tr) - law.b_form.lower() - law.phi_form.lower() * p1) / law.kt
+        c["Newton's first step leaves its bracket (bisection)"] += int(
+            (slip & (r0 > 0) & (lam0 + step >= np.minimum(ahead, lam0 + lmax))).sum())
+        scale = min(f.scale for f in forms)
+        c["dissipation on several panels"] += int((slip & (lam1 - lam0 > 2 * scale)).sum())
+    if law.taumax is not None:
+        cap = law.taumax
+        u0 = law.adhesion(lam0)[0] + law.friction(lam0)[0] * p0
+        u1 = law.adhesion(lam1)[0] + law.friction(lam1)[0] * p1
+        c["slip on the cap"] += int((slip & (u1 > cap)).sum())
+        c["slip below the cap"] += int((slip & (u1 < cap)).sum())
+        c["the cap taken in the sub-interval"] += int((slip & (u0 < cap) & (u1 > cap)).sum())
+        c["the cap left in the sub-interval"] += int((slip & (u0 > cap) & (u1 < cap)).sum())
+        c["on the surface at the cap exactly"] += int((on & contact & (u0 == cap)).sum())
+        c["stick on the cap's surface, unloading"] += int((free & on & stick & (u0 > cap)).sum())
+        if law.indicator == "CLASSICAL":
+            c["CLASSICAL on the cap"] += int((free & on & contact & (u0 > cap)).sum())
     return c
 
 
@@ -992,6 +1085,10 @@ def _contact_failures() -> Iterator[Batch]:
         ("degenerate face", CONTACT_LAWS["plain"], None, "degenerate",
          "failure: degenerate face"),
         ("non-finite", CONTACT_LAWS["plain"], None, "nan", "failure: non-finite"),
+        # exactly on the cap (B + phi p = TAUMAX, in binary), pressed 0.002 deeper while sliding
+        # 0.0005 on: the cap does not rise with p, the point slides on it (KT dv < phi dp)
+        ("on the cap exactly, pressure rising",
+         dict(KP=1e3, KT=5e2, PHI=0.25, B=0.5, TAUMAX=8.0), None, "press", None),
     ]
     for i, (name, params, hold, broken, expect) in enumerate(cases):
         # a face of zero length is degenerate under NLGEOM only (small strain: the reference face)
@@ -1002,7 +1099,9 @@ def _contact_failures() -> Iterator[Batch]:
             # every face pressed 0.03 deep, sliding 0.01 against tau on the cone
             u_old = np.concatenate([_rigid(x, n, t, -0.03 - g0, 0.0, 0.0) for x, n, t, g0 in
                                     zip(x0, normals, tangents, _gaps(x0, normals))])
-            u_new = u_old + np.concatenate([np.tile(-0.01 * t, (nfn, 1)) for t in tangents])
+            press, slide = (0.002, 0.0005) if broken == "press" else (0.0, 0.01)
+            u_new = u_old + np.concatenate([np.tile(-press * n - slide * t, (nfn, 1))
+                                            for n, t in zip(normals, tangents)])
             state = ref.init_state()
             state["p"][:] = law.kp * 0.03
             state["lam"][:] = 0.01
@@ -1075,9 +1174,18 @@ def contact_required() -> list[str]:
            "stabilised, damped points",
            "failure: outside the cone", "raises: snap-back", "failure: degenerate face",
            "failure: non-finite", "no failure: classical held STICK",
-           "no failure: predictor stays on the cone"]
+           "no failure: predictor stays on the cone",
+           "no failure: on the cap exactly, pressure rising"]
+    req += ["exponential form, Newton return", "Newton's first step leaves its bracket (bisection)",
+            "dissipation on several panels", "return crosses a table row",
+            "return crosses several table rows", "slip beyond the last table row (flat)",
+            "slip on the cap", "slip below the cap", "the cap taken in the sub-interval",
+            "the cap left in the sub-interval", "on the surface at the cap exactly",
+            "stick on the cap's surface, unloading", "CLASSICAL on the cap"]
     req += [f"{nfn}-node faces, {gauss} Gauss points, {geo}, {kin}" for nfn in (2, 3)
             for gauss in (2, 3) for geo in ("PE", "AX") for kin in ("small strain", "NLGEOM")]
+    req += [f"{nfn}-node faces, {gauss} Gauss points, {'AX' if ax else 'PE'}, "
+            f"{'NLGEOM' if nlgeom else 'small strain'}" for nfn, gauss, ax, nlgeom in LOBATTO_CONFIGS]
     return req
 
 

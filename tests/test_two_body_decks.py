@@ -44,6 +44,7 @@ def _deck(tmp_path, name="d.dat", low="Q8PE", nxl=3, nxu=6, x0=0, lx=30, b=0, ta
     ("MASTER=LOW_TOP, FOUNDATION=F", "not both"),
     ("LAW2=X", "one of FOUNDATION="),
     ("FOUNDATION=F, SEARCH=2", None),
+    ("MASTER=LOW_TOP, GAUSS=LINEAR", "GAUSS=LINEAR is not available with MASTER="),
 ])
 def test_master_is_validated(tmp_path, target, message):
     text = "*FOUNDATION, NAME=F\n-1, 0\n10, 0\n40, 0\n" if "FOUNDATION=F" in target else ""

@@ -63,7 +63,7 @@ from .base import (Check, CheckError, contact_points, last_increment, one_contac
                    rows, table)
 
 __all__ = ["Hertz", "Cattaneo", "CoulombSliding", "Penetration", "UniaxialRambergOsgood", "Lame",
-           "LimitPressure", "hertz_closed_form", "fit_hertz", "stick_half_width",
+           "LimitPressure", "hertz_closed_form", "fit_hertz", "stick_edges", "stick_half_width",
            "lame_radial_displacement"]
 
 _CONTACT = Param("CONTACT", str, None, upper=True,
@@ -171,8 +171,10 @@ def _sqrt_edge(x_in: np.ndarray, r_in: np.ndarray, x_out: float) -> float:
     return float(np.clip(c, lo, hi))
 
 
-def stick_half_width(x: np.ndarray, status: np.ndarray, ratio: np.ndarray, centre: float) -> float:
-    """Half-width of the contiguous stick zone around ``centre`` at one increment.
+def stick_edges(x: np.ndarray, status: np.ndarray, ratio: np.ndarray,
+                centre: float) -> tuple[float, float]:
+    """Left and right edges of the contiguous stick zone around ``centre`` at one increment
+    (``(centre, centre)`` when the point nearest it does not stick).
 
     Parameters
     ----------
@@ -181,14 +183,14 @@ def stick_half_width(x: np.ndarray, status: np.ndarray, ratio: np.ndarray, centr
     ratio : (g,) ``|tau| / (phi p)`` (used to place each edge between the last stick and the first
         slip point, see :func:`_sqrt_edge`).
     centre : the contact centre; the stick zone is the run of stick points, in ``x`` order,
-        through the point nearest to it (0 if that point is not stick).
+        through the point nearest to it.
     """
     order = np.argsort(x)
     xs, st, rs = x[order], np.asarray(status)[order], ratio[order]
     stick = np.array([str(s) == "stick" for s in st])
     k = int(np.argmin(np.abs(xs - centre)))
     if not stick[k]:
-        return 0.0
+        return float(centre), float(centre)
     lo, hi = k, k
     while lo > 0 and stick[lo - 1]:
         lo -= 1
@@ -198,7 +200,14 @@ def stick_half_width(x: np.ndarray, status: np.ndarray, ratio: np.ndarray, centr
     right = _sqrt_edge(xs[lo:hi + 1], rs[lo:hi + 1], xs[hi + 1]) if hi < len(xs) - 1 else xs[hi]
     left = (-_sqrt_edge(-xs[lo:hi + 1][::-1], rs[lo:hi + 1][::-1], -xs[lo - 1])
             if lo > 0 else xs[lo])
-    return 0.5 * float(right - left)
+    return float(left), float(right)
+
+
+def stick_half_width(x: np.ndarray, status: np.ndarray, ratio: np.ndarray, centre: float) -> float:
+    """Half-width of the contiguous stick zone around ``centre`` at one increment (0 when the
+    point nearest it does not stick): :func:`stick_edges`."""
+    left, right = stick_edges(x, status, ratio, centre)
+    return 0.5 * (right - left)
 
 
 class Cattaneo(Check):

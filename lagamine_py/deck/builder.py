@@ -62,6 +62,14 @@ class _PendingMaterial:
         self.plastic = None          # (block, rows (k, 2))
 
 
+class _PendingContactLaw:
+    """A *CONTACT LAW whose *CONTACT LAW TABLE may still follow."""
+
+    def __init__(self, name: str, type_name: str, pairs, block: Block):
+        self.name, self.type, self.pairs, self.block = name, type_name, pairs, block
+        self.table = None            # (block, rows)
+
+
 class _Builder(ImportMixin):
     def __init__(self, name: str, blocks: list[Block], problems: Problems):
         self.pb = problems
@@ -81,6 +89,7 @@ class _Builder(ImportMixin):
         self.index = 0                       # of the block being read
         self.solid_failed = False
         self.material: _PendingMaterial | None = None
+        self.contact_law: _PendingContactLaw | None = None
         self.skipped: list[Block] = []       # keywords that carry nothing here
         self.curves: dict = {}               # name -> an imported tool profile (imports._Curve)
         self.curve_rows: list[np.ndarray] = []   # node rows of those profiles (not the body's)
@@ -213,6 +222,8 @@ class _Builder(ImportMixin):
         self.index = len(self.blocks)
         if self.material is not None:
             self._finish_material()
+        if self.contact_law is not None:
+            self._finish_contact_law()
         if self.step is not None:
             self.pb.at(self.step.where, f"*END STEP missing: step {self.step.name} is not closed "
                                         f"before the end of the deck")
@@ -233,6 +244,8 @@ class _Builder(ImportMixin):
             return
         if self.material is not None and kw not in ("ELASTIC", "PLASTIC"):
             self._finish_material()
+        if self.contact_law is not None and kw != "CONTACT LAW TABLE":
+            self._finish_contact_law()
         spec = KEYWORDS.get(kw)
         if spec is None:
             if not blk.broken:
@@ -826,12 +839,38 @@ class _Builder(ImportMixin):
         return None if bad else circle_points(xc, yc, radius, start, end, arcs, params["CIRCLE"])
 
     def _kw_contact_law(self, blk, params, pairs):
+        """A contact law: the plugin's KEY=VALUE parameters, and a *CONTACT LAW TABLE if one
+        follows (its rows are the parameter CONTACT LAW TABLE).  Built when its cards are over."""
         name = params["NAME"]
         if self._defined_twice(blk, "contact law", name, self.m.contact_laws):
             return
-        cls, values = self._plugin(blk, "contact_laws", params["TYPE"], pairs)
+        self.contact_law = _PendingContactLaw(name, params["TYPE"], pairs, blk)
+
+    def _kw_contact_law_table(self, blk, params, rows):
+        law = self.contact_law
+        if law is None:
+            self.pb.at(blk, "*CONTACT LAW TABLE must follow the *CONTACT LAW it belongs to")
+            return
+        if law.table is not None:
+            self.pb.at(blk, f"contact law {law.name} has two *CONTACT LAW TABLE")
+            return
+        law.table = (blk, [vals for _row, vals in rows])
+
+    def _finish_contact_law(self) -> None:
+        law, self.contact_law = self.contact_law, None
+        given = {pair.key: pair.text for _row, pair in law.pairs}
+        lines = {pair.key: row.line for row, pair in law.pairs or ()}
+        if law.table is not None:
+            if any(k.upper() == "CONTACT LAW TABLE" for k in given):
+                self.pb.at(law.block, "the table is given by the *CONTACT LAW TABLE block: leave "
+                                      "CONTACT LAW TABLE= out")
+                return
+            given["CONTACT LAW TABLE"] = law.table[1]
+            lines["TABLE"] = law.table[0].line       # messages about the table point at it
+        cls, values = self._plugin(law.block, "contact_laws", law.type, given, lines)
         if cls is not None:
-            self.m.contact_laws[name] = ContactLawSpec(name, params["TYPE"], values, blk.where)
+            self.m.contact_laws[law.name] = ContactLawSpec(law.name, law.type, values,
+                                                           law.block.where)
 
     def _kw_contact(self, blk, params, data):
         ok = True
@@ -840,6 +879,12 @@ class _Builder(ImportMixin):
             self.pb.at(blk, "give one of FOUNDATION= (a rigid foundation) and MASTER= (a surface of "
                             "a deformable body)" + (", not both" if params["MASTER"] else ""))
             return
+        if target == "MASTER" and str(params["GAUSS"]).upper() == "LINEAR":
+            # the two-body element integrates at its points; the corner interpolation of
+            # GAUSS=LINEAR (elements.contact) is written for a rigid foundation only
+            self.pb.at(blk, "GAUSS=LINEAR is not available with MASTER= (use 2, 3, LOBATTO2 or "
+                            "LOBATTO3)")
+            ok = False
         if params["SEARCH"] is not None and target != "MASTER":
             self.pb.at(blk, "SEARCH= goes with MASTER= (the pairing of two deformable bodies)")
             ok = False

@@ -177,12 +177,25 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
             doc="rigid foundation: parabolic arcs through points (1,2,3), (3,4,5), ..."),
     Keyword("CONTACT LAW", "model", (_name("NAME", True), _name("TYPE", True, doc="contact law plugin")),
             _PAIRS, doc="contact law: the plugin's parameters"),
+    Keyword("CONTACT LAW TABLE", "model", (),
+            Data("rows", (Col("lambda"), Col("phi"), Col("B")), min_lines=1,
+                 doc="`lambda, phi, B` rows, the first at lambda = 0, lambda increasing"),
+            doc="after a *CONTACT LAW (COULOMB): friction phi and adhesion B piecewise linear in the "
+                "slip lambda, flat beyond the last row (instead of PHI, B and their hardening)"),
     Keyword("CONTACT", "model", (_name("SURFACE", True),
                                  _name("FOUNDATION", doc="the rigid foundation (or MASTER=)"),
                                  _name("MASTER", doc="a surface of another deformable body, whose 3-node "
                                                      "faces the SURFACE's Gauss points project on "
                                                      "(instead of FOUNDATION=)"),
-                                 _name("LAW", True), Param("GAUSS", int, 3, choices=(2, 3)),
+                                 _name("LAW", True),
+                                 Param("GAUSS", int, 3,
+                                       choices=(2, 3, "LOBATTO2", "LOBATTO3", "LINEAR"),
+                                       doc="the contact element's points: 2 or 3 Gauss points; "
+                                           "LOBATTO3 (LOBATTO2 on 2-node faces): at the face's "
+                                           "nodes; LINEAR: the law at the face's corners, its "
+                                           "tractions linear along the face (no pressure "
+                                           "oscillation under stiff penalties, "
+                                           "docs/accuracy_speed.md)"),
                                  Param("SEARCH", float, None, gt=0.0, unit="length",
                                        doc="with MASTER: each slave face couples to the master faces "
                                            "within this distance (default three times the larger "

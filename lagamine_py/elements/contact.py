@@ -118,11 +118,49 @@ from ..core.tensors import RIGHT as _R, right_normal as _right
 from ..foundation import Foundation, Projection
 from ..laws.base import ContactLaw
 from .base import ContactPoints, Group, GroupResult, StepContext
-from .shapes import gauss_1d, line_shape
+from .shapes import gauss_1d, line_shape, lobatto_1d
 
-__all__ = ["ContactGroup", "FAR"]
+__all__ = ["ContactGroup", "FAR", "RULES", "integration_rule"]
 
 FAR = 1e30          # penetration handed to the law for a point whose line misses the foundation
+#: the contact element's integration rules (*CONTACT, GAUSS=): Gauss-Legendre with 2 or 3
+#: points, or Gauss-Lobatto at the face's nodes (nodal integration, see the module docstring)
+RULES = (2, 3, "LOBATTO2", "LOBATTO3", "LINEAR")
+
+
+def integration_rule(gauss) -> tuple[np.ndarray, np.ndarray]:
+    """Points xi (q,) and weights (q,) of a rule of :data:`RULES` (``LINEAR``: the law's points
+    at the corners, each with the weight of its linear shape function)."""
+    if gauss in (2, 3):
+        return gauss_1d(int(gauss))
+    if isinstance(gauss, str) and gauss.upper() in ("LOBATTO2", "LOBATTO3", "LINEAR"):
+        return lobatto_1d(2 if gauss.upper() == "LINEAR" else int(gauss[-1]))
+    raise ValueError(f"GAUSS must be one of {', '.join(map(str, RULES))}, not {gauss!r}")
+
+
+class _Sampling:
+    """Shape functions and their derivative blocks at points ``xi`` of every face (tiled over the
+    faces: g = f nq + q): N, dN (q, a), w (q,); Wg (g,), Ng, dNg (g, a); AP, At, RAt (g, 2, nd)
+    (d P / d x, d t / d x and d (R t) / d x); P0, t0 (g, 2) on the reference faces ``x0``."""
+
+    def __init__(self, nfn: int, xi, w, x0):
+        nf, nd = len(x0), 2 * nfn
+        self.nq = len(xi)
+        self.N, self.dN = line_shape(nfn, xi)                     # (q, a)
+        self.w = np.asarray(w, float)
+        eye = np.eye(2)
+        AP = np.einsum("qa,ij->qiaj", self.N, eye).reshape(self.nq, 2, nd)
+        At = np.einsum("qa,ij->qiaj", self.dN, eye).reshape(self.nq, 2, nd)
+        self.AP, self.At = np.tile(AP, (nf, 1, 1)), np.tile(At, (nf, 1, 1))
+        self.RAt = np.tile(np.einsum("ij,qjJ->qiJ", _R, At), (nf, 1, 1))
+        self.Wg = np.tile(self.w, nf)
+        self.Ng, self.dNg = np.tile(self.N, (nf, 1)), np.tile(self.dN, (nf, 1))
+        self.P0, self.t0 = self.at(x0)
+
+    def at(self, x):
+        """P and t = dx/dxi (g, 2) at face node positions x (f, a, 2)."""
+        return (np.einsum("qa,fai->fqi", self.N, x).reshape(-1, 2),
+                np.einsum("qa,fai->fqi", self.dN, x).reshape(-1, 2))
 
 
 def _norm(t):
@@ -204,7 +242,8 @@ class ContactGroup(Group):
     foundation_name : str, key of ``ctx.foundation_old/new``.
     law : :class:`lagamine_py.laws.base.ContactLaw` (its ``theta``, ``substeps``, ``subtol``,
         ``submax`` split the increment).
-    gauss : 2 or 3 Gauss points per face.
+    gauss : the integration rule, one of :data:`RULES`: 2 or 3 Gauss points per face, or
+        ``"LOBATTO2"`` / ``"LOBATTO3"`` (points at the face's nodes).
     axisymmetric : forces per radian (times the radius r of P) instead of times thickness.
     thickness : plane-strain out-of-plane thickness.
     tool_dofs : the global DOFs of the foundation's reference node (u, v[, rotation]), or None
@@ -220,8 +259,14 @@ class ContactGroup(Group):
         nf, nfn = self.face_nodes.shape
         if nfn not in (2, 3):
             raise ValueError(f"contact {name!r}: faces have 2 or 3 nodes, not {nfn}")
-        if gauss not in (2, 3):
-            raise ValueError(f"contact {name!r}: GAUSS must be 2 or 3, not {gauss}")
+        try:
+            xi, self.w = integration_rule(gauss)
+        except ValueError as exc:
+            raise ValueError(f"contact {name!r}: {exc}") from None
+        if nfn == 3 and gauss == "LOBATTO2":
+            raise ValueError(f"contact {name!r}: LOBATTO2 puts no point at the mid-side node of a "
+                             f"3-node face: use LOBATTO3")
+        self.rule = gauss
         self.ids = np.asarray(elements, int)
         self.faces = np.asarray(faces, int)
         self.coords0 = np.asarray(coords0, float)
@@ -230,7 +275,7 @@ class ContactGroup(Group):
         self.law = law
         self.axisymmetric = bool(axisymmetric)
         self.thickness = float(thickness)
-        self.nf, self.nfn, self.nq = nf, nfn, int(gauss)
+        self.nf, self.nfn, self.nq = nf, nfn, len(xi)
         self.ng = nf * self.nq
         self.nd = 2 * nfn
         self.dofs = (2 * self.face_nodes[:, :, None] + np.arange(2)).reshape(nf, self.nd)
@@ -248,7 +293,6 @@ class ContactGroup(Group):
         # a 1e-9 model: no contact stiffness, a "singular" matrix)
         size = float(np.abs(self.coords0).max(initial=0.0))
         self._touch_tol = 1e-12 * size
-        xi, self.w = gauss_1d(self.nq)
         self.N, self.dN = line_shape(nfn, xi)                     # (q, a)
         # d P_i / d x_J and d t_i / d x_J per Gauss point, tiled over faces: (g, 2, nd)
         eye = np.eye(2)
@@ -263,6 +307,13 @@ class ContactGroup(Group):
         self._RAt = np.tile(np.einsum("ij,qjJ->qiJ", _R, At), (nf, 1, 1))
         self._x0 = np.ascontiguousarray(self.coords0[self.face_nodes])   # (f, a, 2) reference
         self._P0, self._t0 = self._at_points(self._x0)
+        # GAUSS=LINEAR: the law at the corners (the points above), its tractions interpolated
+        # linearly to the Gauss points that integrate the forces (see the module docstring)
+        self._lift = self._force = None
+        if gauss == "LINEAR":
+            xf, wf = gauss_1d(nfn)
+            self._lift = line_shape(2, xf)[0]                     # (qF, corners)
+            self._force = _Sampling(nfn, xf, wf, self._x0)
         self._jac_tol = 1e-14 * size
         self._start_cache = None          # see _start_penetration
         self._kernel = False              # the fused kernel (use_kernels)
@@ -276,7 +327,7 @@ class ContactGroup(Group):
         or the NumPy reference; the foundation projects through its kernel likewise."""
         self.foundation.use_kernels(on)
         self._kernel_wanted = bool(on)
-        self._kernel = (bool(on) and self.law.kernel_vector() is not None
+        self._kernel = (bool(on) and self.law.kernel_vector() is not None and self._lift is None
                         and self.foundation.has_kernel() and kernels.module("contact") is not None)
 
     def init_state(self) -> dict[str, np.ndarray]:
@@ -299,6 +350,7 @@ class ContactGroup(Group):
         (slip), its hardening functions start at the lambda reached."""
         self.law = law
         self._kernel = (self._kernel_wanted and law.kernel_vector() is not None
+                        and self._lift is None
                         and self.foundation.has_kernel() and kernels.module("contact") is not None)
         new = law.init_state(self.ng)
         keep = set(ContactLaw.STATE_KEYS) | set(_OWN)
@@ -307,7 +359,21 @@ class ContactGroup(Group):
                 new[key] = np.array(value, copy=True)
         return new
 
-    def _increment_totals(self, st, state, P, t, geo, d_start, d_end, dv) -> dict[str, np.ndarray]:
+    def _areas(self, P, t, geo, x) -> np.ndarray:
+        """The area (g,) each law point stands for, ``W |t|`` times thickness or radius; with
+        GAUSS=LINEAR ``int L_c dA`` of each corner's linear shape, by the force points (x the
+        face positions)."""
+        if self._lift is None:
+            wt, _ = self._weights(P, geo)
+            return wt * _norm(t)
+        fs = self._force
+        Pf, tf = fs.at(x)
+        wt, _ = self._weights(Pf, geo, fs)
+        dA = (wt * _norm(tf if geo else fs.t0)).reshape(self.nf, fs.nq)
+        return (dA @ self._lift).reshape(-1)
+
+    def _increment_totals(self, st, state, P, t, geo, d_start, d_end, dv,
+                          x=None) -> dict[str, np.ndarray]:
         """The group's own state after the law's: ``dvp = vp - vp_old``; ``energy +=
         (dissip - dissip_old) dA``, ``dA`` the area the forces are integrated on at the end of
         the increment (so the sum over points and increments is the work of the friction
@@ -315,9 +381,8 @@ class ContactGroup(Group):
         energy balance (:mod:`lagamine_py.solver.energy`), ``fdis += 1/2 (tau_old + tau) dvp
         dA`` and ``stab += (1/2 (ps_old + ps) dd + 1/2 (ts_old + ts) dv) dA`` (``dd = d_end -
         d_start``, ``dv`` the increment's tangential relative displacement, where the normal met
-        the foundation at both ends)."""
-        wt, _ = self._weights(P, geo)
-        dA = wt * _norm(t)
+        the foundation at both ends).  ``x``: the face positions (GAUSS=LINEAR, :meth:`_areas`)."""
+        dA = self._areas(P, t, geo, x)
         st["dvp"] = np.asarray(st["vp"], float) - np.asarray(state["vp"], float)
         st["energy"] = (np.asarray(state["energy"], float)
                         + (np.asarray(st["dissip"], float) - np.asarray(state["dissip"], float)) * dA)
@@ -467,6 +532,32 @@ class ContactGroup(Group):
         self._start_cache = (geo, self.foundation, xo.copy(), key, d.copy())
         return d
 
+    def start_penetration(self) -> np.ndarray:
+        """d (g,) of the reference configuration against the foundation where the deck puts it
+        (-FAR where a point's normal misses it): the faces near it, for the penalty advice."""
+        d, _, _ = self._penetration(self._x0, np.zeros(2), 0.0, False)
+        return d
+
+    def point_lengths(self) -> np.ndarray:
+        """(g,) the reference corner-to-corner length of each point's face (the length PTOL of
+        METHOD=AUGMENTED is relative to)."""
+        x = self._x0
+        return np.repeat(np.linalg.norm(x[:, 1] - x[:, 0], axis=1), self.nq)
+
+    def chain_neighbours(self) -> tuple[np.ndarray, np.ndarray]:
+        """The points before and after each point along the surface (g,) each, -1 at an end:
+        within a face in the order of xi (from its first corner to its second), across faces
+        through a shared corner (the next face starts where this one ends)."""
+        g = np.arange(self.ng).reshape(self.nf, self.nq)
+        prev, nxt = np.full((self.nf, self.nq), -1), np.full((self.nf, self.nq), -1)
+        prev[:, 1:], nxt[:, :-1] = g[:, :-1], g[:, 1:]
+        starts = {int(n): f for f, n in enumerate(self.face_nodes[:, 0])}
+        for f, end in enumerate(self.face_nodes[:, 1]):
+            f2 = starts.get(int(end))
+            if f2 is not None and f2 != f:
+                nxt[f, -1], prev[f2, 0] = g[f2, 0], g[f, -1]
+        return prev.reshape(-1), nxt.reshape(-1)
+
     def rotation(self, x_old, x_new) -> np.ndarray:
         """Angle (rad, (g,)) the face tangent turns through between face positions x_old
         and x_new (f, a, 2)."""
@@ -605,15 +696,29 @@ class ContactGroup(Group):
             out["lam"] = None
         return out
 
-    def _weights(self, P, geo):
+    def _weights(self, P, geo, sampling=None):
         """Integration weight per point without |t| (which sits in the force vectors):
         W * thickness (PE) or W * r (AX, r of P when ``geo``, of the reference point
-        otherwise); and its derivative (g, nd) (None when constant)."""
+        otherwise); and its derivative (g, nd) (None when constant).  ``sampling``: the force
+        points of GAUSS=LINEAR (default: the law's points)."""
+        Wg, P0, AP = ((self._Wg, self._P0, self._AP) if sampling is None else
+                      (sampling.Wg, sampling.P0, sampling.AP))
         if not self.axisymmetric:
-            return self._Wg * self.thickness, None
+            return Wg * self.thickness, None
         if not geo:
-            return self._Wg * self._P0[:, 0], None
-        return self._Wg * P[:, 0], self._Wg[:, None] * self._AP[:, 0, :]
+            return Wg * P0[:, 0], None
+        return Wg * P[:, 0], Wg[:, None] * AP[:, 0, :]
+
+    def _lifted(self, p, tau, D, x, geo, tangent):
+        """GAUSS=LINEAR: p, tau (gF,) and their derivatives (gF, nw) at the force points,
+        linear between the corners' values ``p``, ``tau`` (g,); P, t (gF, 2) there."""
+        fs, L = self._force, self._lift
+        lift = lambda v: np.einsum("qc,fc...->fq...", L, v.reshape(  # noqa: E731
+            (self.nf, self.nq) + v.shape[1:])).reshape((-1,) + v.shape[1:])
+        p, tau = lift(np.asarray(p, float)), lift(np.asarray(tau, float))
+        Dl = {k: lift(D[k]) for k in ("p", "tau")} if tangent else D
+        P, t = fs.at(x)
+        return p, tau, Dl, P, (t if geo else fs.t0)
 
     def compute(self, u_new, u_old, state, ctx: StepContext, tangent: bool = True) -> GroupResult:
         """Contact forces ``f`` (f, nw) and ``K = df/du_new`` (f, nw, nw) (``nw = nd`` without a
@@ -629,18 +734,24 @@ class ContactGroup(Group):
         stab = self._stabilisation(ctx)
         with np.errstate(invalid="ignore", divide="ignore"):
             st, D, P, t, extra = self._integrate(u_new, u_old, state, ctx, tangent, stab is not None)
+        xn = self._face_x(u_new)
         jac = _norm(t)
         p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
         if stab is not None:
             p, tau = self._stabilise(stab, st, extra, D, tangent)
         else:
             st["ps"], st["ts"] = np.zeros(self.ng), np.zeros(self.ng)
-        st = self._increment_totals(st, state, P, t, geo, extra[0], extra[1], extra[3])
+        st = self._increment_totals(st, state, P, t, geo, extra[0], extra[1], extra[3], xn)
+        pts = self                                 # the points the forces are integrated on
+        if self._lift is not None:                 # GAUSS=LINEAR: at the force points
+            pts = self._force
+            p, tau, D, P, t = self._lifted(p, tau, D, xn, geo, tangent)
+        Ng_all, nq = (self._Ng, self.nq) if pts is self else (pts.Ng, pts.nq)
         Rt = _right(t)
         vec = p[:, None] * Rt - tau[:, None] * t                      # (p e_u + tau e_v) |t|
-        wt, Dwt = self._weights(P, geo)
-        f = self._Ng[:, :, None] * vec[:, None, :] * wt[:, None, None]          # (g, a, i)
-        f = f.reshape(self.nf, self.nq, self.nd).sum(axis=1)
+        wt, Dwt = self._weights(P, geo, None if pts is self else pts)
+        f = Ng_all[:, :, None] * vec[:, None, :] * wt[:, None, None]            # (g, a, i)
+        f = f.reshape(self.nf, nq, self.nd).sum(axis=1)
         failure = None
         if (jac <= self._jac_tol).any():
             failure = f"contact {self.name}: degenerate face (zero Jacobian)"
@@ -649,24 +760,26 @@ class ContactGroup(Group):
         else:
             failure = self._inadmissible(st, ctx)
         if self.nt:
-            f = np.concatenate([f, self._tool_force(vec * wt[:, None], P, ctx)], axis=1)
+            f = np.concatenate([f, self._tool_force(vec * wt[:, None], P, ctx, nq)], axis=1)
         K = None
         if tangent:
             Dvec = Rt[:, :, None] * D["p"][:, None, :] - t[:, :, None] * D["tau"][:, None, :]
             if geo:                                   # the face (normal, length) moves
-                Dvec[:, :, :self.nd] += p[:, None, None] * self._RAt - tau[:, None, None] * self._At
+                RAt, At = (self._RAt, self._At) if pts is self else (pts.RAt, pts.At)
+                Dvec[:, :, :self.nd] += p[:, None, None] * RAt - tau[:, None, None] * At
             if Dwt is not None and self.nt:
-                Dwt = np.concatenate([Dwt, np.zeros((self.ng, self.nt))], axis=1)
-            Ng = self._Ng[:, :, None, None]
+                Dwt = np.concatenate([Dwt, np.zeros((len(Dwt), self.nt))], axis=1)
+            Ng = Ng_all[:, :, None, None]
             Kg = Ng * Dvec[:, None] * wt[:, None, None, None]         # (g, a, i, J)
             if Dwt is not None:
                 Kg = Kg + Ng * vec[:, None, :, None] * Dwt[:, None, None, :]
-            K = Kg.reshape(self.nf, self.nq, self.nd, self.nw).sum(axis=1)
+            K = Kg.reshape(self.nf, nq, self.nd, self.nw).sum(axis=1)
             if self.nt:
                 DF = Dvec * wt[:, None, None]
                 if Dwt is not None:
                     DF = DF + vec[:, :, None] * Dwt[:, None, :]
-                K = np.concatenate([K, self._tool_tangent(vec * wt[:, None], DF, P, ctx)], axis=1)
+                K = np.concatenate([K, self._tool_tangent(vec * wt[:, None], DF, P, ctx, pts)],
+                                   axis=1)
         return GroupResult(f=f, K=K, state=st, failure=failure)
 
     def _stabilise(self, stab, st, extra, D, tangent):
@@ -687,29 +800,31 @@ class ContactGroup(Group):
             D["tau"] = D["tau"] + (c * Ddv_sum + b * Dd_end)
         return np.asarray(st["p"], float) + ps, np.asarray(st["tau"], float) + ts
 
-    def _tool_force(self, F, P, ctx) -> np.ndarray:
+    def _tool_force(self, F, P, ctx, nq) -> np.ndarray:
         """The tool's rows of ``f`` (f, nt): ``-sum F_g`` and ``-sum (P_g - x_R) x F_g`` per face,
-        ``F`` (g, 2) the points' forces."""
-        Ff = F.reshape(self.nf, self.nq, 2).sum(axis=1)
+        ``F`` (g, 2) the forces of the nq points per face they are integrated on."""
+        Ff = F.reshape(self.nf, nq, 2).sum(axis=1)
         if self.nt == 2:
             return -Ff
         arm = P - self._tool_point(ctx)
-        m = (arm[:, 0] * F[:, 1] - arm[:, 1] * F[:, 0]).reshape(self.nf, self.nq).sum(axis=1)
+        m = (arm[:, 0] * F[:, 1] - arm[:, 1] * F[:, 0]).reshape(self.nf, nq).sum(axis=1)
         return -np.column_stack([Ff, m])
 
-    def _tool_tangent(self, F, DF, P, ctx) -> np.ndarray:
+    def _tool_tangent(self, F, DF, P, ctx, pts) -> np.ndarray:
         """The tool's rows of ``K`` (f, nt, nw): the derivatives of :meth:`_tool_force`; ``DF``
-        (g, 2, nw) the derivatives of the points' forces."""
-        rows = -DF.reshape(self.nf, self.nq, 2, self.nw).sum(axis=1)
+        (g, 2, nw) the derivatives of the points' forces; ``pts`` the points (self, or the force
+        points of GAUSS=LINEAR)."""
+        nq, AP = (self.nq, self._AP) if pts is self else (pts.nq, pts.AP)
+        rows = -DF.reshape(self.nf, nq, 2, self.nw).sum(axis=1)
         if self.nt == 2:
             return rows
         arm = P - self._tool_point(ctx)
         Dm = arm[:, 0, None] * DF[:, 1, :] - arm[:, 1, None] * DF[:, 0, :]       # arm x DF
-        Dm[:, :self.nd] += (self._AP[:, 0, :] * F[:, 1, None]
-                            - self._AP[:, 1, :] * F[:, 0, None])                  # dP x F
+        Dm[:, :self.nd] += (AP[:, 0, :] * F[:, 1, None]
+                            - AP[:, 1, :] * F[:, 0, None])                  # dP x F
         Dm[:, self.nd] -= F[:, 1]                                                # -dx_R x F
         Dm[:, self.nd + 1] += F[:, 0]
-        Dm = -Dm.reshape(self.nf, self.nq, self.nw).sum(axis=1)
+        Dm = -Dm.reshape(self.nf, nq, self.nw).sum(axis=1)
         return np.concatenate([rows, Dm[:, None, :]], axis=1)
 
     def _tool_point(self, ctx) -> np.ndarray:
@@ -796,8 +911,7 @@ class ContactGroup(Group):
         P, t = self._axes_t(self._face_x(u_new), geo)
         e_u, _ = _de_u_dt(t)
         pr = self._project(P, e_u, (c, theta))
-        wt, _ = self._weights(P, geo)
-        dA = wt * np.linalg.norm(t, axis=-1)
+        dA = self._areas(P, t, geo, self._face_x(u_new))
         p = np.asarray(state["p"], float)
         tau = np.asarray(state["tau"], float)
         status = np.where(pr.found, np.asarray(state["status"], np.int8), NONE).astype(np.int8)
@@ -813,9 +927,15 @@ class ContactGroup(Group):
         # the forces include the stabilisation's tractions (as the solver's equilibrium)
         pf = p + np.asarray(state.get("ps", 0.0), float)
         tf = tau + np.asarray(state.get("ts", 0.0), float)
-        vec = pf[:, None] * _right(t) - tf[:, None] * t
+        Pv, tv = P, t                             # the points the forces are integrated on
+        if self._lift is None:
+            wt, _ = self._weights(P, geo)
+        else:                                     # GAUSS=LINEAR: the force points
+            pf, tf, _, Pv, tv = self._lifted(pf, tf, None, self._face_x(u_new), geo, False)
+            wt, _ = self._weights(Pv, geo, self._force)
+        vec = pf[:, None] * _right(tv) - tf[:, None] * tv
         F = -np.einsum("gi,g->i", vec, wt)                         # sum_a N_a = 1 on a face
-        arm = P - (self.foundation.centre + c)
+        arm = Pv - (self.foundation.centre + c)
         Fg = vec * wt[:, None]
         M = -float(np.sum(arm[:, 0] * Fg[:, 1] - arm[:, 1] * Fg[:, 0]))
         try:

@@ -9,13 +9,25 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["gauss_1d", "line_shape"]
+__all__ = ["gauss_1d", "lobatto_1d", "line_shape"]
 
 
 def gauss_1d(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss-Legendre points and weights on [-1, 1]."""
     x, w = np.polynomial.legendre.leggauss(n)
     return x, w
+
+
+def lobatto_1d(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Lobatto points and weights on [-1, 1] with the ends: n = 2 the trapezoid rule
+    (points at the nodes of a 2-node line), n = 3 Simpson's (at the nodes of a 3-node line,
+    weights 1/3, 4/3, 1/3: the consistent nodal forces of a uniform pressure on a quadratic face,
+    1/6, 2/3, 1/6 of its length)."""
+    if n == 2:
+        return np.array([-1.0, 1.0]), np.array([1.0, 1.0])
+    if n == 3:
+        return np.array([-1.0, 0.0, 1.0]), np.array([1.0, 4.0, 1.0]) / 3.0
+    raise ValueError(f"Lobatto rules of 2 or 3 points, not {n}")
 
 
 def line_shape(nen: int, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

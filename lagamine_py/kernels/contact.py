@@ -29,11 +29,15 @@ from numba import njit
 
 from ..core.status import OPEN, SLIP, STICK
 from . import calls
-from .layout import (COULOMB_B as _B, COULOMB_CLASSICAL as _CLASSICAL, COULOMB_HB as _HB,
-                     COULOMB_HPHI as _HPHI, COULOMB_K1 as _K1, COULOMB_K2 as _K2,
-                     COULOMB_KP as _KP, COULOMB_KT as _KT, COULOMB_NK as _NK,
-                     COULOMB_PHI as _PHI, COULOMB_PREDICTOR as _PREDICTOR, COULOMB_SNAP as _SNAP,
-                     ON_SURFACE_RTOL as _ON_SURFACE_RTOL)
+from .layout import (CAP_BISECTIONS as _CAP_BISECTIONS, COULOMB_B_FORM as _B_FORM,
+                     COULOMB_CLASSICAL as _CLASSICAL, COULOMB_KP as _KP, COULOMB_KT as _KT,
+                     COULOMB_NBREAK as _NBREAK, COULOMB_NTABLE as _NTABLE,
+                     COULOMB_PHI_FORM as _PHI_FORM, COULOMB_PREDICTOR as _PREDICTOR,
+                     COULOMB_SCALE as _SCALE, COULOMB_SMOOTH as _SMOOTH, COULOMB_SNAP as _SNAP,
+                     COULOMB_TAUMAX as _TAUMAX, COULOMB_VECTOR as _HEAD, FORM_EXP as _EXP,
+                     FORM_LINEAR as _LINEAR, MAX_PANELS as _MAX_PANELS,
+                     ON_SURFACE_RTOL as _ON_SURFACE_RTOL, PANEL_LENGTH as _PANEL_LENGTH,
+                     RETURN_MAXIT as _RETURN_MAXIT, RETURN_XTOL as _RETURN_XTOL)
 from .scalars import nmax as _nmax, nmin as _nmin
 
 __all__ = ["project_points", "face_positions", "contact_group"]
@@ -62,49 +66,235 @@ def _sign(x):
 
 
 @njit(**_JIT)
-def _clipped(v0, slope, lam):
-    """``Coulomb._hardening`` for one function: ``max(v0 + slope lam, 0)`` and its
-    right-derivative; ``(v0, 0)`` when the slope is 0."""
-    if slope == 0.0:
-        return v0, 0.0
-    kink = -v0 / slope if slope < 0.0 else math.inf
-    return _nmax(v0 + slope * lam, 0.0), (slope if lam < kink else 0.0)
+def _form(lv, base, values, lam):
+    """One hardening form of ``contact_hardening`` at ``lam``: value and right-derivative.
+    ``base`` its four slots, ``values`` the offset of its table values (then slopes)."""
+    kind = lv[base]
+    if kind == _LINEAR:
+        v0, slope = lv[base + 1], lv[base + 2]
+        if slope == 0.0:
+            return v0, 0.0
+        return _nmax(v0 + slope * lam, 0.0), (slope if lam < lv[base + 3] else 0.0)
+    if kind == _EXP:
+        v0, v_inf, c = lv[base + 1], lv[base + 2], lv[base + 3]
+        e = math.exp(-lam / c)
+        dv = v0 - v_inf
+        return v_inf + dv * e, (-dv / c) * e
+    # table: segment k with x_k <= lam < x_k+1 (the first below x_0, the last's flat beyond)
+    nt = int(lv[_NTABLE])
+    x0 = _HEAD + int(lv[_NBREAK])
+    k = 0
+    while k + 1 < nt and lv[x0 + k + 1] <= lam:
+        k += 1
+    slope = lv[values + nt + k]
+    return lv[values + k] + slope * (lam - lv[x0 + k]), slope
 
-
-# --------------------------------------------------------------------------------------------
-# COULOMB
 
 @njit(**_JIT)
-def _dissipation(lv, tau0, p0, dp, dv_c, lam0, dlam, sig):
-    """``Coulomb._dissipation`` for one plastic point with dlam != 0."""
+def _hardening(lv, lam):
+    """``Coulomb._hardening``: B, B', phi, phi' at lam."""
+    nb, nt = int(lv[_NBREAK]), int(lv[_NTABLE])
+    b, hb = _form(lv, _B_FORM, _HEAD + nb + nt, lam)
+    phi, hphi = _form(lv, _PHI_FORM, _HEAD + nb + 3 * nt, lam)
+    return b, hb, phi, hphi
+
+
+@njit(**_JIT)
+def _bounds(lv, base, upper):
+    """``Form.lower()`` / ``Form.upper()`` of one form."""
+    kind = lv[base]
+    if kind == _LINEAR:
+        v0, slope = lv[base + 1], lv[base + 2]
+        if upper:
+            return math.inf if slope > 0.0 else v0
+        return 0.0 if slope < 0.0 else v0
+    if kind == _EXP:
+        return _nmax(lv[base + 1], lv[base + 2]) if upper else _nmin(lv[base + 1], lv[base + 2])
+    nb, nt = int(lv[_NBREAK]), int(lv[_NTABLE])
+    values = _HEAD + nb + (nt if base == _B_FORM else 3 * nt)
+    out = lv[values]
+    for k in range(1, nt):
+        out = _nmax(out, lv[values + k]) if upper else _nmin(out, lv[values + k])
+    return out
+
+
+@njit(**_JIT)
+def _ahead(lv, lam):
+    """The first break beyond lam (inf if none)."""
+    for i in range(int(lv[_NBREAK])):
+        if lv[_HEAD + i] > lam:
+            return lv[_HEAD + i]
+    return math.inf
+
+
+@njit(**_JIT)
+def _residual(lv, x, lam0, p1, abs_tr):
+    """``Coulomb._residual``: r(x) and KT + H(x)."""
     kt = lv[_KT]
+    b, hb, phi, hphi = _hardening(lv, x)
+    return abs_tr - kt * (x - lam0) - b - phi * p1, kt + hb + hphi * p1
+
+
+@njit(**_JIT)
+def _newton(lv, p1, lam0, lam, resid, end, abs_tr):
+    """``Coulomb._newton`` at one point."""
+    kt = lv[_KT]
+    if resid > 0.0:
+        lo = lam
+        b_lo, phi_lo = _bounds(lv, _B_FORM, False), _bounds(lv, _PHI_FORM, False)
+        hi = _nmin(end, lam0 + (abs_tr - b_lo - phi_lo * p1) / kt)
+    else:
+        b_hi, phi_hi = _bounds(lv, _B_FORM, True), _bounds(lv, _PHI_FORM, True)
+        lo = lam0 + (abs_tr - b_hi - phi_hi * p1) / kt
+        hi = lam
+    x = lam
+    active = resid != 0.0
+    for _ in range(_RETURN_MAXIT):
+        if not active:
+            break
+        r, slope = _residual(lv, x, lam0, p1, abs_tr)
+        if r > 0.0:
+            lo = x
+        if r < 0.0:
+            hi = x
+        xn = x + r / slope
+        if math.isfinite(lo) and math.isfinite(hi) and not (xn > lo and xn < hi):
+            xn = 0.5 * (lo + hi)
+        conv = (r == 0.0) or (abs(xn - x) <= _RETURN_XTOL * (abs(x) + abs(x - lam0)))
+        if r != 0.0:
+            x = xn
+        active = not conv
+    _, slope = _residual(lv, x, lam0, p1, abs_tr)
+    return x, slope
+
+
+@njit(**_JIT)
+def _walk(lv, p1, lam0, resid, hb0, hphi0, abs_tr):
+    """``Coulomb._walk`` at one plastic point: (lam1, KT + H, snap-back)."""
+    kt = lv[_KT]
+    smooth = lv[_SMOOTH] != 0.0
+    lam = lam0
+    dmat = kt
+    h = hb0 + hphi0 * p1
+    for it in range(int(lv[_NBREAK]) + 1):
+        if it:
+            _, hb, _, hphi = _hardening(lv, lam)
+            h = hb + hphi * p1
+        ahead = _ahead(lv, lam)
+        if smooth:
+            if resid > 0.0 and math.isfinite(ahead):
+                r_ahead, _ = _residual(lv, ahead, lam0, p1, abs_tr)
+                if r_ahead > 0.0:             # the root lies beyond this piece
+                    lam, resid = ahead, r_ahead
+                    continue
+            lam, dmat = _newton(lv, p1, lam0, lam, resid, ahead, abs_tr)
+            break
+        step = resid / (kt + h)
+        if step > 0.0 and lam + step > ahead:
+            resid = resid - (kt + h) * (ahead - lam)          # linear piece
+            lam = ahead
+            continue
+        dmat = kt + h
+        lam = lam + step
+        break
+    return lam, dmat, lv[_SNAP] != 0.0 and dmat <= 0.0
+
+
+@njit(**_JIT)
+def _return(lv, p1, lam0, f_tr, b0, hb0, phi0, hphi0, abs_tr):
+    """``Coulomb._return`` at one plastic point: (lam1, KT + H, rho_p, snap-back)."""
+    cap = lv[_TAUMAX]
+    if not math.isfinite(cap):
+        lam, dmat, bad = _walk(lv, p1, lam0, f_tr, hb0, hphi0, abs_tr)
+        _, _, phi1, _ = _hardening(lv, lam)
+        return lam, dmat, phi1, bad
+    lam_u, dmat, bad = _walk(lv, p1, lam0, abs_tr - (b0 + phi0 * p1), hb0, hphi0, abs_tr)
+    lam_c = lam0 + (abs_tr - cap) / lv[_KT]
+    if lam_c > lam_u:                         # on the cap
+        return lam_c, lv[_KT], 0.0, False
+    _, _, phi1, _ = _hardening(lv, lam_u)
+    return lam_u, dmat, phi1, bad
+
+
+@njit(**_JIT)
+def _path_u(lv, lam, tau0, p0, dp, dte, lam0, sig):
+    """``Coulomb._abs_tau`` before the cap: B + phi p(s(lam)) on the plastic path."""
+    kt = lv[_KT]
+    b, _, phi, _ = _hardening(lv, lam)
+    num = kt * (lam - lam0) + b + phi * p0 - sig * tau0
+    den = sig * dte - phi * dp
+    s = num / den if abs(den) > 1e-300 else 1.0
+    s = _clip01(s)
+    return b + phi * (p0 + dp * s)
+
+
+@njit(**_JIT)
+def _gauss(lv, a, c, tau0, p0, dp, dte, lam0, sig):
+    """``Coulomb._gauss`` on one panel."""
+    cap = lv[_TAUMAX]
+    acc = 0.0
+    for k in range(8):
+        lam = 0.5 * (a + c) + 0.5 * (c - a) * _GL_X[k]
+        acc += _nmin(_path_u(lv, lam, tau0, p0, dp, dte, lam0, sig), cap) * _GL_W[k]
+    return acc * 0.5 * (c - a)
+
+
+@njit(**_JIT)
+def _panel(lv, a, c, tau0, p0, dp, dte, lam0, sig):
+    """One panel of ``Coulomb._dissipation``, cut where the cap takes over
+    (``Coulomb._cap_switch``)."""
+    cap = lv[_TAUMAX]
+    if not math.isfinite(cap):
+        return _gauss(lv, a, c, tau0, p0, dp, dte, lam0, sig)
+    oa = _path_u(lv, a, tau0, p0, dp, dte, lam0, sig) >= cap
+    oc = _path_u(lv, c, tau0, p0, dp, dte, lam0, sig) >= cap
+    x = c
+    if oa != oc:
+        lo, hi = a, c
+        for _ in range(_CAP_BISECTIONS):
+            m = 0.5 * (lo + hi)
+            if (_path_u(lv, m, tau0, p0, dp, dte, lam0, sig) >= cap) == oa:
+                lo = m
+            else:
+                hi = m
+        x = 0.5 * (lo + hi)
+    return (_gauss(lv, a, x, tau0, p0, dp, dte, lam0, sig)
+            + _gauss(lv, x, c, tau0, p0, dp, dte, lam0, sig))
+
+
+@njit(**_JIT)
+def _dissipation(lv, tau0, p0, dp, dte, lam0, dlam, sig):
+    """``Coulomb._dissipation`` for one plastic point with dlam != 0."""
     lam1 = lam0 + dlam
     lo, hi = _nmin(lam0, lam1), _nmax(lam0, lam1)
-    nk = int(lv[_NK])
-    # the pieces between lo, the kinks inside [lo, hi] (sorted) and hi; no array allocated
-    e1 = e2 = hi
-    if nk >= 1:
-        e1 = _nmin(_nmax(lv[_K1], lo), hi)
-    if nk == 2:
-        e2 = _nmin(_nmax(lv[_K2], lo), hi)
-        if e2 < e1:
-            e1, e2 = e2, e1
+    nb = int(lv[_NBREAK])
+    smooth = lv[_SMOOTH] != 0.0
     total = 0.0
-    for piece in range(1 + nk):
-        a = lo if piece == 0 else (e1 if piece == 1 else e2)
-        c = e1 if piece == 0 else (e2 if piece == 1 else hi)
-        acc = 0.0
-        for k in range(8):
-            lam = 0.5 * (a + c) + 0.5 * (c - a) * _GL_X[k]
-            b, _ = _clipped(lv[_B], lv[_HB], lam)
-            phi, _ = _clipped(lv[_PHI], lv[_HPHI], lam)
-            num = kt * (lam - lam0) + b + phi * p0 - sig * tau0
-            den = sig * kt * dv_c - phi * dp
-            s = num / den if abs(den) > 1e-300 else 1.0
-            s = _clip01(s)
-            acc += (b + phi * (p0 + dp * s)) * _GL_W[k]
-        total += acc * 0.5 * (c - a)
+    a = lo
+    # the pieces between lo, the breaks clipped into [lo, hi] (sorted) and hi
+    for piece in range(nb + 1):
+        c = _nmin(_nmax(lv[_HEAD + piece], lo), hi) if piece < nb else hi
+        if smooth:
+            n = _nmin(_nmax(np.ceil((c - a) / (_PANEL_LENGTH * lv[_SCALE])), 1.0),
+                      _MAX_PANELS)
+            if n != n:                        # NaN (a NaN state): one panel, NaN as NumPy
+                n = 1.0
+            for j in range(int(n)):
+                total += _panel(lv, a + (c - a) * (j / n), a + (c - a) * ((j + 1) / n), tau0,
+                                p0, dp, dte, lam0, sig)
+        else:
+            total += _panel(lv, a, c, tau0, p0, dp, dte, lam0, sig)
+        a = c
     return _sign(dlam) * total
+
+
+@njit(**_JIT)
+def _outside(lv, p, tau, lam):
+    """``Coulomb.inadmissible`` at one point."""
+    b, _, phi, _ = _hardening(lv, lam)
+    radius = _nmin(b + phi * p, lv[_TAUMAX])
+    abs_tau = abs(tau)
+    return abs_tau - radius > 1e-7 * (radius + abs_tau + p) + 1e-12 * lv[_KT]
 
 
 @njit(**_JIT)
@@ -114,9 +304,9 @@ def _coulomb_point(lv, po, tau_old, lam_old, slip_old, vp_old, dissip_old, statu
     slip, vp, dissip, status, snap_back`` and fills ``tan`` (14,) in the order of TAN_KEYS;
     ``snap_back``: the return met ``KT + H <= 0`` (the NumPy path raises ReturnMappingError)."""
     kp, kt = lv[_KP], lv[_KT]
+    cap = lv[_TAUMAX]
+    capped_law = math.isfinite(cap)
     classical, predictor = lv[_CLASSICAL] != 0.0, lv[_PREDICTOR] != 0.0
-    nk = int(lv[_NK])
-    snap = lv[_SNAP] != 0.0
     bad = False
     closable = h_g != OPEN
     contact = (dg >= 0.0) and closable
@@ -135,24 +325,39 @@ def _coulomb_point(lv, po, tau_old, lam_old, slip_old, vp_old, dissip_old, statu
     tau0 = 0.0 if recon else tau_old
     p0 = 0.0 if recon else po
     lam0 = lam_old
-    tau_tr = tau0 + kt * dv_c
+    dte = kt * dv_c
+    tau_tr = tau0 + dte
     # loading (Coulomb._loading)
-    b0, hb0 = _clipped(lv[_B], lv[_HB], lam0)
-    phi0, hphi0 = _clipped(lv[_PHI], lv[_HPHI], lam0)
-    radius0 = b0 + phi0 * p0
+    b0, hb0, phi0, hphi0 = _hardening(lv, lam0)
+    u0 = b0 + phi0 * p0
+    dp = p1 - p0
+    rho_rate = phi0 * dp
+    if capped_law:
+        radius0 = _nmin(u0, cap)
+        f_tr = abs(tau_tr) - _nmin(b0 + phi0 * p1, cap)
+        if u0 < cap:
+            pass
+        elif u0 > cap:
+            rho_rate = 0.0
+        else:
+            rho_rate = _nmin(rho_rate, 0.0)
+    else:
+        radius0 = u0
+        f_tr = abs(tau_tr) - b0 - phi0 * p1
     abs_tau0 = abs(tau0)
     f0 = abs_tau0 - radius0
-    f_tr = abs(tau_tr) - b0 - phi0 * p1
     sig = 1.0 if tau_tr >= 0.0 else -1.0
     if tau0 != 0.0:
         sig0 = _sign(tau0)
     else:
-        sig0 = 1.0 if dv_c >= 0.0 else -1.0
+        sig0 = 1.0 if dte >= 0.0 else -1.0
     on = active and (f0 >= -_ON_SURFACE_RTOL * (radius0 + abs_tau0))
-    indicator = sig0 * kt * dv_c - phi0 * (p1 - p0)
+    indicator = sig0 * dte - rho_rate
     pos_tr = f_tr > 0.0
     if classical:
         h0 = hb0 + hphi0 * p0
+        if capped_law and not u0 < cap:
+            h0 = 0.0
         indicator = h0 * indicator / (h0 + kt)
         loading_on = on and (indicator >= 0.0)
     else:
@@ -162,45 +367,19 @@ def _coulomb_point(lv, po, tau_old, lam_old, slip_old, vp_old, dissip_old, statu
         plastic = False
     elif h_g == SLIP:
         plastic = contact
-    # return (Coulomb._return), walking over the kinks
+    # return (Coulomb._return), walking over the breaks
     lam = lam0
-    resid = f_tr
-    done = not plastic
     dmat = kt
-    h = hb0 + hphi0 * p1
-    for it in range(nk + 1):
-        if done:
-            break
-        if it:
-            _, hb = _clipped(lv[_B], lv[_HB], lam)
-            _, hphi = _clipped(lv[_PHI], lv[_HPHI], lam)
-            h = hb + hphi * p1
-        step = resid / (kt + h)
-        cross = False
-        ahead = math.inf
-        if nk:
-            for i in range(nk):
-                k = lv[_K1 + i]
-                if lam < k < ahead:
-                    ahead = k
-            cross = (step > 0.0) and (lam + step > ahead)
-        if not cross:
-            if snap and kt + h <= 0.0:
-                bad = True
-            dmat = kt + h
-            lam = lam + step
-            done = True
-        else:
-            resid = resid - (kt + h) * (ahead - lam)
-            lam = ahead
-    phi1, _ = _clipped(lv[_PHI], lv[_HPHI], lam)
+    rho_p = 0.0
+    if plastic:
+        lam, dmat, rho_p, bad = _return(lv, p1, lam0, f_tr, b0, hb0, phi0, hphi0, abs(tau_tr))
     dlam = lam - lam0 if plastic else 0.0
     if predictor and h_g != SLIP:
         dlam = _nmax(dlam, 0.0)
     skt = sig * kt
     ddis = 0.0
     if plastic and dlam != 0.0:
-        ddis = _dissipation(lv, tau0, p0, p1 - p0, dv_c, lam0, dlam, sig)
+        ddis = _dissipation(lv, tau0, p0, p1 - p0, dte, lam0, dlam, sig)
     # tangent (Coulomb._tangent)
     c = 1.0 if contact else 0.0
     act = 1.0 if active else 0.0
@@ -217,7 +396,7 @@ def _coulomb_point(lv, po, tau_old, lam_old, slip_old, vp_old, dissip_old, statu
     dtr_tau = 0.0 if recon else 1.0
     kpc = kp * c
     if plastic:
-        lam_tr, lam_p1, lam_lam = sig / dmat, -phi1 / dmat, kt / dmat
+        lam_tr, lam_p1, lam_lam = sig / dmat, -rho_p / dmat, kt / dmat
     else:
         lam_tr, lam_p1, lam_lam = 0.0, 0.0, 1.0
     lam_d = act * (lam_tr * dtr_d + lam_p1 * kpc)
@@ -463,13 +642,12 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
     stabilisation ``(kn, kt, range)`` (``kn < 0``: none).  Writes the new state, the
     stabilisation's ``ps_new``, ``ts_new``, ``d_end`` and the sum of the sub-intervals' ``dv``
     (``d_out``, ``dv_out``: for the energy), ``outside`` (g,)
-    (``Coulomb.outside_cone``), ``f`` (f, nw) and ``K`` (f, nw, nw) when ``tangent``; returns
+    (``Coulomb.inadmissible``), ``f`` (f, nw) and ``K`` (f, nw, nw) when ``tangent``; returns
     ``(snap-backs, degenerate faces (|t| <= jac_tol), non-finite f, p or tau)`` as counts."""
     nf, na = xo.shape[0], xo.shape[1]
     nq = N.shape[0]
     nd = 2 * na
     nw = nd + nt
-    kt = lv[_KT]
     has_stab = stab[0] >= 0.0
     Dd_end = np.zeros(nw)
     Dd_k = np.zeros(nw)
@@ -668,12 +846,7 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
                 Dtau[:] = 0.0
             p_new[g], tau_new[g], lam_new[g] = sp, stau, slam
             slip_new[g], vp_new[g], dissip_new[g], status_new[g] = sslip, svp, sdis, sstat
-            # Coulomb.outside_cone
-            b1, _ = _clipped(lv[_B], lv[_HB], slam)
-            phi1, _ = _clipped(lv[_PHI], lv[_HPHI], slam)
-            radius = b1 + phi1 * sp
-            abs_tau = abs(stau)
-            outside[g] = abs_tau - radius > 1e-7 * (radius + abs_tau + sp) + 1e-12 * kt
+            outside[g] = _outside(lv, sp, stau, slam)          # Coulomb.inadmissible
             if not ax:
                 wt = W[q] * thickness
             elif geo:

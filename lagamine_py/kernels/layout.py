@@ -19,12 +19,32 @@ YIELD_RTOL = 1e-12
 # -- contact kernel (kernels.contact) --------------------------------------------------------
 #: COULOMB: a point with ``f >= -ON_SURFACE_RTOL (radius + |tau|)`` starts on the yield surface
 ON_SURFACE_RTOL = 1e-10
-#: slots of the COULOMB law vector (12,): penalties, friction and adhesion with their slopes,
-#: the loading indicator, the finite clipping kinks (at most two, their count) and whether a
-#: softening snap-back is possible
-(COULOMB_KP, COULOMB_KT, COULOMB_PHI, COULOMB_B, COULOMB_HPHI, COULOMB_HB, COULOMB_CLASSICAL,
- COULOMB_PREDICTOR, COULOMB_K1, COULOMB_K2, COULOMB_NK, COULOMB_SNAP) = range(12)
-COULOMB_VECTOR = 12
+#: slots of the COULOMB law vector: penalties, the loading indicator, whether a softening
+#: snap-back is possible, the shear limit TAUMAX (inf: none), the counts of breaks and table
+#: rows, whether a form is smooth (exponential: the return iterates), the smallest length of an
+#: exponential form (the dissipation's panels), then each of B and phi as four slots
+#: ``kind, v0, a, c``: LINEAR ``v0, slope, kink``; EXP ``v0, v_inf, lamc``; TABLE ``v0, -, -``
+(COULOMB_KP, COULOMB_KT, COULOMB_CLASSICAL, COULOMB_PREDICTOR, COULOMB_SNAP, COULOMB_TAUMAX,
+ COULOMB_NBREAK, COULOMB_NTABLE, COULOMB_SMOOTH, COULOMB_SCALE) = range(10)
+COULOMB_B_FORM, COULOMB_PHI_FORM = 10, 14
+#: the fixed part; after it, variable-length: the breaks (sorted lam where a derivative jumps,
+#: NBREAK), then with a table: its lam rows, B's values and slopes, phi's values and slopes
+#: (NTABLE each)
+COULOMB_VECTOR = 18
+#: form kinds
+FORM_LINEAR, FORM_EXP, FORM_TABLE = 0, 1, 2
+#: COULOMB with an exponential form: the return's safeguarded Newton stops when a step is below
+#: this times (|lam| + the slip scale), or after RETURN_MAXIT iterations (bisection keeps it
+#: inside its bracket); the dissipation's 8-point Gauss-Legendre panels are at most
+#: PANEL_LENGTH times the smallest LAMC long (relative error below 1e-18 on an exponential),
+#: at most MAX_PANELS per piece
+RETURN_XTOL = 4e-16
+RETURN_MAXIT = 60
+PANEL_LENGTH = 2.0
+MAX_PANELS = 64
+#: COULOMB with TAUMAX: bisection steps locating where the cap takes over inside a dissipation
+#: piece
+CAP_BISECTIONS = 60
 #: order of the tangent rows of the Coulomb point update
 TAN_KEYS = ("lam_d", "tau_d", "lam_du", "tau_du", "lam_v", "tau_v", "lam_tau", "tau_tau",
             "lam_lam", "tau_lam", "p_d", "p_u", "tau_u", "lam_u")

@@ -184,6 +184,20 @@ class ContactLaw(Parametrized):
         "KT": (kt, has_friction)}``.  Default: none."""
         return {}
 
+    def augment(self, state, h):
+        """Augmented Lagrangian: after a converged Newton solve of an increment, the multipliers
+        for another solve of the same increment, and how far the constraints are from their
+        tolerance.  ``state``: the solve's trial state; ``h`` (g,) each point's face length.
+        Returns ``(targets, ratio)``: ``targets`` a dict of (g,) arrays the solver puts into the
+        committed state before solving again (None: the constraints are met, no more solves);
+        ``ratio`` the largest violation over its tolerance (<= 1 when met).  The solver repeats
+        at most :attr:`augmax` times (:mod:`lagamine_py.solver.augmented`).  Default: a pure
+        penalty law, ``(None, 0.0)``."""
+        return None, 0.0
+
+    #: augmented Lagrangian: solves of one increment at most (see :meth:`augment`)
+    augmax: int = 1
+
     def kernel_vector(self):
         """The law's parameters as :mod:`lagamine_py.kernels.contact` reads them, when that
         kernel reproduces this law (the built-in COULOMB, exact type only), else None: the

@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import kernels, registry
 from ..core.errors import CutbackRequest, GroupFailure
+from ..core.status import OPEN, SLIP
 from ..elements.contact import ContactGroup
 from ..elements.edges import PressureGroup, surface_faces
 from ..elements.two_body import TwoBodyGroup
@@ -53,6 +54,8 @@ class Problem:
     warnings: list[str] = field(default_factory=list)   # model advice, logged when the run starts
     notices: list[str] = field(default_factory=list)    # what the deck builder did, logged too
     kernel: str = "AUTO"        # solid-group kernel: AUTO / NUMPY / NUMBA (see set_kernel)
+    #: contact group index -> h / E of its faces (the penalty advice, face_scales)
+    face_scales: dict[int, np.ndarray] = field(default_factory=dict)
     #: foundation name -> the global DOFs of its reference node (u, v[, rotation])
     tools: dict[str, np.ndarray] = field(default_factory=dict)
     #: contact law name -> instance (the *CONTACT laws and those *CHANGE CONTACT LAW names)
@@ -241,6 +244,7 @@ def build_problem(model) -> Problem:
     get = registry.get
     groups, kinds, names, blocks = [], [], [], []
     advice = []
+    scales = {}
     laws = {name: get("laws", spec.law)(**spec.params) for name, spec in model.materials.items()}
     for blk in model.blocks:
         law = laws[blk.material] if blk.material in laws else laws[blk.material.upper()]
@@ -271,6 +275,8 @@ def build_problem(model) -> Problem:
                                        surface_faces(model, master.name)[0], master.name, claw,
                                        cs.gauss, model.axisymmetric,
                                        _surface_thickness(model, surf, lookup), cs.search))
+            scales[len(groups) - 1] = face_scales(groups[-1], model, laws, lookup)
+            # the faces touching the master are judged when they come into contact (Controller)
         else:
             fname = _key(model.foundations, cs.foundation)
             name = f"{surf.name}->{fname}"
@@ -278,7 +284,12 @@ def build_problem(model) -> Problem:
                                        foundations[fname], fname, claw, cs.gauss,
                                        model.axisymmetric, _surface_thickness(model, surf, lookup),
                                        tools.get(fname)))
-        advice.extend(penalty_advice(name, claw, face_nodes, elements, model, laws, lookup))
+            scales[len(groups) - 1] = face_scales(groups[-1], model, laws, lookup)
+            # at the start: the faces already touching (a body meshed on the foundation); the
+            # others when they come into contact (Controller, at the end of each step)
+            touching = (groups[-1].start_penetration() >= 0).reshape(groups[-1].nf, -1).any(axis=1)
+            advice.extend(penalty_advice(name, claw, scales[len(groups) - 1][touching],
+                                         "touching the foundation at the start"))
         kinds.append(CONTACT)
         names.append(name)
         blocks.append(None)
@@ -301,6 +312,7 @@ def build_problem(model) -> Problem:
                       advice, list(model.notices), tools=tools, contact_laws=contact_laws,
                       pair_laws=dict(initial_laws), initial_laws=initial_laws,
                       nodal=2 * len(model.node_ids))
+    problem.face_scales = scales
     problem.set_kernel("AUTO")       # a problem used directly behaves as a run's default
     return problem
 
@@ -313,34 +325,102 @@ def tool_dofs(model, spec) -> np.ndarray:
     return np.array([int(model.dof([r], c)[0]) for c in comps], np.int64)
 
 
-# Penalties outside this range of E/h (h the face length) are reported: too soft a KP lets the
-# body sink, too stiff a KP or KT makes the contact pressure oscillate from point to point
-# (docs/accuracy_speed.md: Hertz at KP = 660 E/h is 16 % off, with no convergence trouble).
-PENALTY_RANGE = (5.0, 200.0)
+# Penalties outside this range of E/h (h the length of each face near the foundation, E of its
+# body) are reported at the start of a run.  Below: the accuracy a penalty costs is a predictable
+# penetration p/KP (elastic slip tau/KT).  Above: conditioning (round-off, Newton iterations);
+# a stiff penalty is not wrong by itself: the benchmark Hertz run is within 0.2 % at 1000 E/h
+# (docs/accuracy_speed.md).  The alternation of p between neighbouring Gauss points that stiff
+# penalties can cause on coarse contact zones is reported where it happens (alternation_advice).
+PENALTY_RANGE = (5.0, 1e4)
+_EFFECT = {
+    "KP": ("the body sinks into the foundation by p/KP, {pct:.3g} % of a face length at "
+           "p = E/100", "p and tau are more sensitive to round-off and Newton needs more "
+           "iterations (METHOD=AUGMENTED reaches the same penetration with about 20 E/h)"),
+    "KT": ("each point slips elastically by tau/KT before it slides, {pct:.3g} % of a face length "
+           "at tau = E/100 (stick zones shrink, sliding starts late)", "stick and slip flip-flop "
+           "between Newton iterations (the FLIPFLOP control holds such points); METHOD=AUGMENTED "
+           "enforces stick with a moderate KT"),
+}
 
 
-def penalty_advice(name, law, face_nodes, elements, model, laws, lookup) -> list[str]:
+def penalty_advice(name, law, h_over_e, what: str = "in contact") -> list[str]:
     """Warnings when a penalty of the contact law (:meth:`ContactLaw.penalties`) that plays a
-    role is far from 20-100 E/h on this surface."""
+    role is outside :data:`PENALTY_RANGE` times E/h on the faces whose ``h / E`` (each face's
+    own length, the E of its own body: :func:`face_scales`) are given: the faces in contact."""
     penalties = {k: v for k, (v, plays) in law.penalties().items() if plays}
-    if not penalties or len(face_nodes) == 0:
+    h_over_e = np.asarray(h_over_e, float)
+    if not penalties or h_over_e.size == 0:
         return []
-    x = model.coords[face_nodes[:, :2]]
-    h = float(np.median(np.linalg.norm(x[:, 1] - x[:, 0], axis=1)))
-    block = model.blocks[lookup[int(elements[0])][0]]
-    mat = laws.get(block.material) or laws.get(block.material.upper())
-    E = float(mat.elastic_moduli()[0])
     out = []
     for label, k in penalties.items():
-        ratio = float(k) * h / E
-        if not PENALTY_RANGE[0] <= ratio <= PENALTY_RANGE[1]:
-            out.append(f"contact {name}: {label} = {float(k):.3g} is {ratio:.3g} E/h (E = {E:.4g}, "
-                       f"face length h = {h:.3g}); 20-100 E/h is advised: "
-                       + ("a softer penalty lets the body sink into the foundation"
-                          if ratio < PENALTY_RANGE[0] else
-                          "a stiffer one makes p and tau oscillate from point to point, "
-                          "a wrong answer that converges"))
+        ratio = float(k) * h_over_e
+        lo, hi = float(ratio.min()), float(ratio.max())
+        soft, stiff = lo < PENALTY_RANGE[0], hi > PENALTY_RANGE[1]
+        if not (soft or stiff):
+            continue
+        worst = lo if soft else hi
+        soft_text, stiff_text = _EFFECT.get(label, ("a softer penalty costs accuracy",
+                                                    "a stiffer one costs conditioning"))
+        effect = soft_text.format(pct=100.0 / worst) if soft else stiff_text
+        span = f"{lo:.3g} E/h" if f"{lo:.3g}" == f"{hi:.3g}" else f"{lo:.3g} to {hi:.3g} E/h"
+        out.append(f"contact {name}: {label} = {float(k):.3g} is {span} on the {len(ratio)} "
+                   f"face(s) {what} (h each face's length, E its body's); "
+                   f"{PENALTY_RANGE[0]:g} to {PENALTY_RANGE[1]:g} E/h is advised "
+                   f"(20-100 E/h a good start): " + ("too soft: " if soft else "too stiff: ")
+                   + effect)
     return out
+
+
+def face_scales(group, model, laws, lookup) -> np.ndarray:
+    """``h / E`` (f,) of the faces of a contact group: h the face's corner-to-corner length, E
+    the Young modulus of its element's material."""
+    x = model.coords[group.face_nodes[:, :2]]
+    h = np.linalg.norm(x[:, 1] - x[:, 0], axis=1)
+    moduli = {}
+    E = np.empty(group.nf)
+    for f, eid in enumerate(group.ids):
+        block = model.blocks[lookup[int(eid)][0]]
+        if block.material not in moduli:
+            mat = laws.get(block.material) or laws.get(block.material.upper())
+            moduli[block.material] = float(mat.elastic_moduli()[0])
+        E[f] = moduli[block.material]
+    return h / E
+
+
+def faces_in_contact(group, state) -> np.ndarray:
+    """(f,) bool: the faces of a contact group with a point that carries pressure."""
+    return (np.asarray(state["p"], float) > 0).reshape(group.nf, group.nq).any(axis=1)
+
+
+def alternation_advice(name, group, state) -> str | None:
+    """A warning when the contact stresses of ``state`` alternate along the surface: a point
+    open between two closed neighbours, or a slipping point whose tau has the other sign than
+    both its neighbours' (the symptom of a stiff penalty on Gauss points where the contact zone
+    spans few faces; docs/accuracy_speed.md), or None."""
+    prev, nxt = group.chain_neighbours()
+    status = np.asarray(state["status"])
+    p, tau = np.asarray(state["p"], float), np.asarray(state["tau"], float)
+    closed = status != OPEN
+    both = (prev >= 0) & (nxt >= 0)
+    pi, ni = np.where(both, prev, 0), np.where(both, nxt, 0)
+    gaps = both & ~closed & closed[pi] & closed[ni] & (p[pi] > 0) & (p[ni] > 0)
+    # a tau of round-off (frictionless contact: tau = 0 up to KT times round-off) says nothing
+    real = np.abs(tau) > 1e-6 * max(float(np.abs(p).max(initial=0.0)), 1e-300)
+    flips = (both & (status == SLIP) & real & real[pi] & real[ni]
+             & (tau * tau[pi] < 0) & (tau * tau[ni] < 0))
+    if not (gaps.any() or flips.any()):
+        return None
+    what = []
+    if gaps.any():
+        what.append(f"{int(gaps.sum())} point(s) open between closed neighbours")
+    if flips.any():
+        what.append(f"{int(flips.sum())} slipping point(s) with tau against both neighbours")
+    remedy = ("GAUSS=LINEAR removes it, a finer mesh or a softer penalty reduces it"
+              if group.rule in (2, 3) else "a finer mesh or a softer penalty reduces it")
+    return (f"contact {name}: the contact stresses alternate from point to point ("
+            + ", ".join(what) + f", GAUSS={group.rule}): the penalty enforces more constraints "
+            f"than the face has nodes where the contact zone spans few faces; {remedy} "
+            "(docs/accuracy_speed.md)")
 
 
 def _key(table: dict, name: str) -> str:

@@ -47,12 +47,14 @@ from .. import registry
 from ..output import DEFAULT_WRITERS, FailedAttempt, IncrementResult, default_writers
 from . import restart as rs
 from . import tools
+from .augmented import augmentation_limit, augmented_start
 from .energy import EnergyAccount
 from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, driving_loads, step_loads
 from .newton import FLOOR_FRACTION, Settings, solve_increment
 from .predictor import first_iterate
-from .problem import CONTACT, SOLID, Problem, build_problem, dload_surfaces
+from .problem import (CONTACT, SOLID, Problem, alternation_advice, build_problem,
+                      dload_surfaces, faces_in_contact, penalty_advice)
 from .stabilisation import FlipFlop
 from .stepper import StepExhausted, Stepper
 
@@ -204,6 +206,7 @@ class Controller:
         self.energy = EnergyAccount(n) if tracks_energy(model) else None
         self._previous = None             # (u, states) before the last commit (energy)
         self._last_energy: dict = {}      # the energy terms of the last hand-out
+        self._advised: set[str] = set()   # the contact advice given (once per pair and what)
 
     # -- the run ---------------------------------------------------------------------------
     def run(self, restart: bool) -> Outcome:
@@ -224,6 +227,7 @@ class Controller:
                 advice_log.info(notice)
             for advice in self.problem.warnings:
                 advice_log.warning(advice)
+                self._advised.add(_advice_key(advice))
             for note in self.notes:                 # what claiming the directory did
                 log.warning(note)
             if resume is None:
@@ -350,8 +354,29 @@ class Controller:
                            stepper.cutbacks, stepper.period, stepper.finished)
             self._save_restart(si, loads, stepper, last)
         self._log_step_energy(si)
+        self._contact_advice(si)
         self.reached = loads.reached(self.model)
         self.time_offset += stepper.period
+
+    def _contact_advice(self, si: int) -> None:
+        """At the end of a step, per contact pair, once per run each: the penalties on the faces
+        in contact (:func:`~.problem.penalty_advice`), and stresses that alternate from point to
+        point (:func:`~.problem.alternation_advice`)."""
+        advice_log = logging.getLogger("lagamine_py.advice")
+        for k in self.problem.indices(CONTACT):
+            name, group = self.problem.group_names[k], self.problem.groups[k]
+            texts = []
+            scales = self.problem.face_scales.get(k)
+            if scales is not None:
+                texts += penalty_advice(name, group.law,
+                                        scales[faces_in_contact(group, self.states[k])])
+            alternating = alternation_advice(name, group, self.states[k])
+            texts += [alternating] if alternating else []
+            for text in texts:
+                key = _advice_key(text)
+                if key not in self._advised:
+                    self._advised.add(key)
+                    advice_log.warning(f"step {si + 1}: {text}")
 
     def _setup_step(self, si, step):
         """The step's ``*CONTROLS`` (defaults filled), Newton settings and linear solver; the
@@ -436,11 +461,40 @@ class Controller:
         log.info("  increment at step time %g, dt %g", t_new, dt)
         # an overflow becomes inf or NaN, which Newton reports as a typed failure (NotANumber:
         # the increment is cut back), not a warning on the terminal
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            conv = solve_increment(problem, solver, free, self.u, self.states, ctx, u_c, f_ext,
-                                   settings, floor=FLOOR_FRACTION * self.force_ref,
-                                   u_start=start, predicted=predicted,
-                                   observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+        contact = problem.indices(CONTACT)
+        states, solves, iterations, ratio = self.states, 0, 0, 0.0
+        while True:
+            try:
+                with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                    trial = solve_increment(
+                        problem, solver, free, self.u, states, ctx, u_c, f_ext, settings,
+                        floor=FLOOR_FRACTION * self.force_ref, u_start=start, predicted=predicted,
+                        observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+            except ConvergenceFailure as exc:
+                if solves == 0:
+                    raise
+                # an augmentation that does not converge (stick/slip changing with the
+                # multipliers): the increment keeps the last converged solve, and says so
+                log.warning("  augmented Lagrangian: solve %d did not converge (%s); the "
+                            "increment keeps solve %d, its constraints %.3g times PTOL away",
+                            solves + 1, str(exc).splitlines()[0], solves, ratio)
+                break
+            conv = trial
+            solves, iterations = solves + 1, iterations + conv.iterations
+            # METHOD=AUGMENTED: solve again with the multipliers of this solve (augmented.py)
+            again, ratio = augmented_start(problem, contact, states, conv.states)
+            if again is None:
+                if solves > 1:
+                    log.info("  augmented Lagrangian: %d solves, %d iterations, largest change "
+                             "%.3g PTOL", solves, iterations, ratio)
+                break
+            if solves >= augmentation_limit(problem, contact):
+                log.warning("  augmented Lagrangian: AUGMAX = %d solves reached, the constraints "
+                            "still %.3g times PTOL away", solves, ratio)
+                break
+            log.info("  augmentation %d: the constraints %.3g times PTOL away", solves, ratio)
+            states, start, predicted = again, conv.u, None
+        conv.iterations = iterations           # the cost of the increment: every solve's
         conv.f_ext, conv.ctx = f_ext, ctx
         return conv
 
@@ -625,6 +679,13 @@ def tracks_energy(model) -> bool:
     whose ``*OUTPUT, WRITERS=`` names ENERGY."""
     return (any(str(c.get("type", "")).upper() == "ENERGY" for c in model.checks)
             or any("ENERGY" in step.output.writers for step in model.steps))
+
+
+def _advice_key(text: str) -> str:
+    """What a piece of contact advice is about, said once per run: the pair and the penalty
+    with its value (``contact A->F: KT = 1e+09``), or the pair's alternation."""
+    head = text.split(" is ")[0]
+    return head if " E/h " in text else text.split(":")[0] + " alternation"
 
 
 def _resume_or_none(resume):
