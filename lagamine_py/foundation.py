@@ -16,8 +16,17 @@ Beyond its ends the chain is continued by straight half-lines along the end tang
 F_last'(1)`` for ``s > 1`` on the last), so a body sliding past an end keeps a well-defined,
 continuous contact instead of dropping out.
 
-The foundation only moves rigidly: every method takes a translation ``c`` (2,) that is added
-to all points (the step controller passes ``ctx.foundation_old/new[name]``).
+The foundation only moves rigidly.  Its placement is a translation ``c`` (2,) of its reference
+point ``centre`` (a tool's reference node, or the point a prescribed rotation turns about) and a
+rotation ``theta`` (counter-clockwise) about it: a point ``X`` of the chain as given is at
+``centre + c + R(theta) (X - centre)`` (:func:`placed`).  The methods below take the
+translation ``c``; a rotated chain is projected in its own frame (the contact element turns the
+line (P, e_u) into it, see :mod:`lagamine_py.elements.contact`).
+
+:func:`circle_points` generates the points of a circle or circular arc (rolls, dies): ``n``
+parabolic arcs through points of the circle, each within ``R (1 - sqrt(1 - (1 - cos phi)^2/4))``
+of it (``phi`` half the angle of one arc: the arc's midpoint parameters ``s = +-1/sqrt 2`` lie
+furthest inside, see :func:`circle_error`).
 
 Projection
 ----------
@@ -56,7 +65,7 @@ import numpy as np
 from . import kernels
 from .core.tensors import left_normal
 
-__all__ = ["Foundation", "Projection"]
+__all__ = ["Foundation", "Projection", "placed", "rotation", "circle_points", "circle_error"]
 
 
 @dataclass
@@ -86,6 +95,52 @@ class Projection:
     dd_de: np.ndarray
 
 
+def rotation(theta: float) -> np.ndarray:
+    """The 2x2 counter-clockwise rotation by ``theta`` (radians)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def placed(points, centre, placement) -> np.ndarray:
+    """Points (m, 2) of a chain given at ``points`` after the rigid placement ``placement``
+    (``(dx, dy)`` or ``(dx, dy, theta)``) of its reference point ``centre``:
+    ``centre + c + R(theta) (X - centre)``."""
+    pts = np.asarray(points, float)
+    v = np.asarray(placement, float).ravel()
+    c = v[:2]
+    theta = float(v[2]) if v.size > 2 else 0.0
+    if theta == 0.0:
+        return pts + c
+    x0 = np.asarray(centre, float)
+    return x0 + c + (pts - x0) @ rotation(theta).T
+
+
+def circle_points(xc: float, yc: float, radius: float, start: float, end: float, arcs: int,
+                  body: str) -> np.ndarray:
+    """Points (2 arcs + 1, 2) of ``arcs`` parabolic arcs through points of the circle of centre
+    (xc, yc) and ``radius``, covering the angles ``start`` to ``end`` (degrees, counter-clockwise
+    from +x, ``start < end < start + 360``), equally spaced.  ``body`` says where the bodies in
+    contact lie: ``"INSIDE"`` (a die, a container: the points run counter-clockwise, the centre
+    on their left) or ``"OUTSIDE"`` (a roll, a punch nose: clockwise)."""
+    a = np.radians(np.linspace(start, end, 2 * int(arcs) + 1))
+    if body.upper() == "OUTSIDE":
+        a = a[::-1]
+    elif body.upper() != "INSIDE":
+        raise ValueError(f"body must be INSIDE or OUTSIDE, got {body!r}")
+    return np.column_stack([xc + radius * np.cos(a), yc + radius * np.sin(a)])
+
+
+def circle_error(radius: float, start: float, end: float, arcs: int) -> float:
+    """Largest distance from the chain of :func:`circle_points` to its circle: each arc spans
+    ``2 phi`` with ``phi = (end - start) / (2 arcs)``; through three points of the circle at
+    angles ``-phi, 0, phi`` the parabola is ``F(s) = (R - R a s^2, R sin(phi) s)`` (``a = 1 -
+    cos phi``), whose radius is ``R sqrt(1 - a^2 s^2 (1 - s^2))``: inside the circle, furthest
+    at ``s^2 = 1/2``, by ``R (1 - sqrt(1 - a^2/4))`` (about ``R phi^4 / 32``)."""
+    phi = np.radians((end - start) / (2.0 * arcs))
+    a = 1.0 - np.cos(phi)
+    return float(radius * (1.0 - np.sqrt(1.0 - a * a / 4.0)))
+
+
 def _angle(u: np.ndarray, v: np.ndarray) -> float:
     """Angle (degrees) between two vectors (2,)."""
     c = float(u @ v) / max(float(np.linalg.norm(u) * np.linalg.norm(v)), 1e-300)
@@ -104,12 +159,16 @@ class Foundation:
     ----------
     points : (m, 2) array, m odd >= 3, in the direction of travel (body on the left).
     name : str, for messages.
+    centre : (2,) the reference point its placement turns about.
     s_tol : tolerance on the arc parameter when accepting a root (joints).
     cos_min : minimal ``-e_u . n`` for a valid intersection (rejects grazing rays).
     """
 
-    def __init__(self, points, name: str = "", s_tol: float = 1e-8, cos_min: float = 1e-10):
+    def __init__(self, points, name: str = "", s_tol: float = 1e-8, cos_min: float = 1e-10,
+                 centre=(0.0, 0.0)):
         pts = np.asarray(points, float)
+        #: the reference point of the placement (see the module docstring)
+        self.centre = np.asarray(centre, float).reshape(2)
         if pts.ndim != 2 or pts.shape[1] != 2:
             raise ValueError(f"foundation {name!r}: points must be (m, 2), got {pts.shape}")
         m = pts.shape[0]

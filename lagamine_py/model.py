@@ -10,7 +10,12 @@ Conventions
 * Nodes are stored in deck order; ``node_ids[r]`` is the deck id of row ``r`` and
   ``coords[r] = (x, y)`` (``(r, z)`` in axisymmetry).  Everything below refers to node *rows*
   (0-based), never to deck ids, except where a field name says ``_ids``.
-* Global DOF of node row ``r``, direction ``c`` (0 = x/r, 1 = y/z) is ``2*r + c``.
+* Global DOF of node row ``r``, direction ``c`` (0 = x/r, 1 = y/z) is ``2*r + c``.  The
+  reference nodes of rigid tools (``*FOUNDATION, REF NODE=``) also have an in-plane rotation
+  (deck DOF 6, counter-clockwise, in radians) in plane strain: those DOFs come after all the
+  nodal ones, ``2*n + k`` for the ``k``-th reference node of :attr:`Model.rotation_nodes`
+  (:meth:`Model.dof`).  Every array of nodal values keeps two columns per node; the rotations
+  are the tail ``u[2*n:]`` of the global vectors.
 * Element connectivity follows Abaqus (CPE8/CAX8, CPE6/CAX6, ...): corners counter-clockwise,
   then mid-sides; face Sk runs from corner k to corner k+1 (through its mid-side node).  The
   element class says which node is which (``lagamine_py.elements.base.Element``: ``faces``):
@@ -80,9 +85,14 @@ class ContactLawSpec:
 
 @dataclass
 class FoundationSpec:
+    """A rigid tool.  It moves rigidly with its reference node ``ref_node`` (a node row, whose
+    DOFs 1, 2 and, in plane strain, 6 carry the tool's translation and rotation), or, without
+    one, by ``*FOUNDATION MOTION`` (a prescribed translation and rotation about ``centre``)."""
     name: str
     points: np.ndarray        # (m, 2), m odd >= 3; arcs through (0,1,2), (2,3,4), ...
     where: Where | None = None
+    ref_node: int | None = None          # node row of the reference node, or None
+    centre: tuple[float, float] = (0.0, 0.0)   # reference point (the ref node's coordinates)
 
 
 @dataclass
@@ -107,7 +117,9 @@ class Amplitude:
 
 @dataclass
 class Boundary:
-    """Imposed displacement: nodes (rows), DOFs first..last (1-based, as in the deck)."""
+    """Imposed displacement: nodes (rows), DOFs first..last (1-based, as in the deck); ``dofs``
+    the deck DOFs of that range that exist (1, 2, and 6 on reference nodes; default 1..2 of
+    the range)."""
     target: str               # node id or nset name as written, for messages and reactions
     nodes: np.ndarray
     first: int
@@ -115,13 +127,19 @@ class Boundary:
     value: float
     amplitude: str | None = None
     where: Where | None = None
+    dofs: tuple[int, ...] = ()
+
+    @property
+    def components(self) -> tuple[int, ...]:
+        """The deck DOFs (1, 2, 6) this line imposes."""
+        return self.dofs or tuple(d for d in (1, 2) if self.first <= d <= self.last)
 
 
 @dataclass
 class CLoad:
     target: str
     nodes: np.ndarray
-    dof: int                  # 1 or 2
+    dof: int                  # 1, 2 or 6 (a moment on a reference node)
     value: float              # per node
     amplitude: str | None = None
     where: Where | None = None
@@ -138,10 +156,36 @@ class DLoad:
 
 @dataclass
 class FoundationMotion:
+    """Rigid motion of a foundation without a reference node reached at the step end: the
+    translation (dx, dy) of its reference point and the rotation ``angle`` (radians,
+    counter-clockwise) about it.  (On a foundation with a reference node the builder turns
+    ``*FOUNDATION MOTION`` into ``*BOUNDARY`` lines on that node.)"""
     foundation: str
     dx: float
     dy: float
     amplitude: str | None = None
+    where: Where | None = None
+    angle: float = 0.0
+
+
+@dataclass
+class LawChange:
+    """``*CHANGE CONTACT LAW``: from its step on, the pair ``pair`` (``SURFACE->FOUNDATION``)
+    uses the contact law ``law``."""
+    pair: str
+    law: str
+    where: Where | None = None
+
+
+@dataclass
+class Stabilisation:
+    """``*CONTACT STABILIZATION`` of a step (see :mod:`lagamine_py.solver.tools`): viscous
+    normal and tangential tractions on the open points of the pairs ``pairs`` (all when
+    empty) that lie within ``range`` of their foundation (None: one face length)."""
+    factor: float
+    tangential: float = 1.0
+    range: float | None = None
+    pairs: tuple[str, ...] = ()
     where: Where | None = None
 
 
@@ -197,6 +241,8 @@ class Step:
     dloads: list[DLoad] = field(default_factory=list)
     motions: list[FoundationMotion] = field(default_factory=list)
     op_new: set[str] = field(default_factory=set)
+    law_changes: list[LawChange] = field(default_factory=list)
+    stabilisation: Stabilisation | None = None
     output: OutputRequest = field(default_factory=OutputRequest)
     controls: dict[str, Any] = field(default_factory=dict)   # *CONTROLS values (tolerances ...)
     where: Where | None = None
@@ -239,8 +285,42 @@ class Model:
     notices: list[str] = field(default_factory=list)
 
     @property
+    def rotation_nodes(self) -> list[int]:
+        """Node rows with a rotation DOF (DOF 6): the reference nodes of the foundations, in
+        the order the foundations are declared, each once; none in axisymmetry (a tool of
+        revolution only translates)."""
+        if self.axisymmetric:
+            return []
+        out: list[int] = []
+        for spec in self.foundations.values():
+            if spec.ref_node is not None and int(spec.ref_node) not in out:
+                out.append(int(spec.ref_node))
+        return out
+
+    @property
     def ndof(self) -> int:
-        return 2 * len(self.node_ids)
+        return 2 * len(self.node_ids) + len(self.rotation_nodes)
+
+    def dof(self, rows, c: int) -> np.ndarray:
+        """Global DOFs of node rows ``rows`` in direction ``c`` (0 = x/r, 1 = y/z, 5 = the
+        rotation, deck DOF 6, of reference nodes); KeyError for a row without that DOF."""
+        rows = np.asarray(rows, np.int64)
+        if c in (0, 1):
+            return 2 * rows + c
+        if c != 5:
+            raise KeyError(f"no DOF {c + 1}: DOFs are 1, 2 and 6 (reference nodes)")
+        rot = self.rotation_nodes
+        at = {r: 2 * len(self.node_ids) + k for k, r in enumerate(rot)}
+        missing = [int(r) for r in rows.ravel() if int(r) not in at]
+        if missing:
+            raise KeyError(f"node row {missing[0]} has no DOF 6 (not a reference node)")
+        return np.array([at[int(r)] for r in rows.ravel()], np.int64).reshape(rows.shape)
+
+    def dof_names(self) -> list[str]:
+        """``node <id> x|y|rotation`` for every global DOF (messages)."""
+        names = [f"node {int(i)} {c}" for i in self.node_ids for c in ("x", "y")]
+        names += [f"node {int(self.node_ids[r])} rotation" for r in self.rotation_nodes]
+        return names
 
     def element_lookup(self) -> dict[int, tuple[int, int]]:
         """deck element id -> (block index, row in block)."""

@@ -15,7 +15,8 @@ import numpy as np
 
 from .core.outdir import run_name
 
-TEXT_COLUMNS = {"status", "nset", "contact", "step_name", "failed", "reason", "load"}
+TEXT_COLUMNS = {"status", "nset", "contact", "step_name", "failed", "reason", "load", "foundation",
+                "ref_node"}
 
 #: contact.csv columns that came with the COPEN sign of ``gap`` (positive when open): a table
 #: without them was written with ``gap`` positive for penetration

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from lagamine_py.deck import load_deck
-from lagamine_py.output import default_writers
+from lagamine_py.output import DEFAULT_WRITERS, default_writers
 from lagamine_py.output.base import Writer
 from lagamine_py.results import RunResults
 from lagamine_py.solver import run
@@ -31,7 +31,7 @@ class Capture(Writer):
 def run_deck(deck, outdir, parameters=None):
     model = load_deck(Path(deck), parameters=parameters)
     cap = Capture()
-    writers = default_writers(Path(outdir), model) + [cap]
+    writers = default_writers(Path(outdir), model, names=DEFAULT_WRITERS + ("ENERGY",)) + [cap]
     outcome = run(model, Path(outdir), writers=writers, deck_path=Path(deck))
     return outcome, cap, RunResults(Path(outdir))
 

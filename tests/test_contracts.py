@@ -232,6 +232,26 @@ class UnbatchedTangent(LinearElastic):
         return s, self.D, new, ok
 
 
+class RectangleDissipation(J2Linear):
+    """Reports the plastic dissipation as s_n+1 . deps_p (the rectangle rule), not in the
+    trapezoidal form the balance needs: off by 1/2 (s_n+1 - s_n) . deps_p per increment."""
+
+    def energy(self, state_old, state_new):
+        psi, _ = super().energy(state_old, state_new)
+        s = np.asarray(state_new["eps_e"], float) @ self.D_elastic.T
+        dp = np.asarray(state_new["peeq"], float) - np.asarray(state_old["peeq"], float)
+        dev = s[..., :3] - s[..., :3].mean(-1, keepdims=True)
+        q = np.sqrt(1.5 * (np.sum(dev ** 2, -1) + 2 * s[..., 3] ** 2))
+        return psi, q * dp                     # s_n+1 . deps_p
+
+
+class DoubleSprings(Coulomb):
+    """Stores p^2/KP + tau^2/KT: twice the penalty springs' energy."""
+
+    def stored_energy(self, state):
+        return 2.0 * super().stored_energy(state)
+
+
 class CoulombNeedsAName(Coulomb):
     params = Coulomb.params + (Param("TABLE", str, doc="a file name"),)
 
@@ -384,12 +404,14 @@ BROKEN = [
     ("laws", Anisotropic, {"objectivity"}),
     ("laws", WritesPeeqInPlace, {"state unchanged"}),
     ("laws", UnbatchedTangent, {"batched shapes"}),
+    ("laws", RectangleDissipation, {"energy"}),
     ("contact_laws", CoulombNeedsAName, {"parameters"}),
     ("contact_laws", BadStatus, {"state and status"}),
     ("contact_laws", ElasticSlipTangent, {"tangent entries", "tangent chained"}),
     ("contact_laws", WritesLamInPlace, {"state unchanged"}),
     ("contact_laws", NarrowCone, {"admissible path"}),
     ("contact_laws", IgnoresHolds, {"frozen holds"}),
+    ("contact_laws", DoubleSprings, {"energy"}),
     ("writers", FailsOnAttempts, {"hooks"}),
     ("writers", NeverFlushes, {"flushed"}),
     ("writers", WritesNothing, {"files"}),

@@ -119,7 +119,7 @@ CASES = [
     ("bad time increments", edit("1, 1, 0.1, 1", "1, 1, 2, 1"), "1, 1, 2, 1", "STATIC",
      ["min dt <= initial dt <= max dt"]),
     ("non-positive time", edit("1, 1, 0.1, 1", "1, -1, 0.1, 1"), "1, -1, 0.1, 1", "STATIC", ["must be > 0"]),
-    ("dof out of range", edit("1, 1, 2\n*END", "1, 1, 3\n*END"), "1, 1, 3", "BOUNDARY", ["1 <= first <= last <= 2"]),
+    ("dof out of range", edit("1, 1, 2\n*END", "1, 3, 3\n*END"), "1, 3, 3", "BOUNDARY", ["1 <= first <= last <= 6"]),
     ("foundation with an even count", edit("*STEP\n", "*FOUNDATION, NAME=F\n0, 0\n1, 0\n2, 0\n3, 0\n*STEP\n"),
      "*FOUNDATION, NAME=F", "FOUNDATION", ["odd number >= 3", "got 4"]),
     ("unknown contact law type", edit("*STEP\n", "*CONTACT LAW, NAME=C, TYPE=COULOMBE\nKP=1, KT=1, PHI=0\n*STEP\n"),

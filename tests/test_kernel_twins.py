@@ -726,6 +726,8 @@ def contact_state(law, kinds, nq, rng):
     state = {"p": p, "tau": tau, "lam": lam, "slip": rng.random(ng),
              "vp": rng.uniform(-1.0, 1.0, ng), "dissip": rng.random(ng),
              "dvp": rng.uniform(-1.0, 1.0, ng), "energy": rng.random(ng),
+             "fdis": rng.random(ng), "ps": rng.uniform(-1.0, 1.0, ng),
+             "ts": rng.uniform(-1.0, 1.0, ng), "stab": rng.random(ng),
              "status": rng.integers(0, 3, ng).astype(np.int8)}
     touching = np.repeat([k == "touching" for k in kinds], nq)
     for key in ("p", "tau"):
@@ -746,11 +748,15 @@ class ContactConfig:
     hold: bool
     translation: int         # 0 none, 1 along x (the straight arc stays at y = 0), 2 any
     seed: int
+    tool: bool = False       # the foundation's reference node: the tool's DOFs in the group
+                             # (u, v and in PE the rotation: the foundation turns too)
+    stab: bool = False       # *CONTACT STABILIZATION's damping
 
     def label(self) -> str:
         return (f"{self.nfn}-node {self.gauss}gp {'AX' if self.ax else 'PE'} "
                 f"{'NLGEOM' if self.nlgeom else 'small'} {self.law} SUBSTEPS={self.substeps} "
-                f"THETA={self.theta}{' held' if self.hold else ''} c{self.translation}")
+                f"THETA={self.theta}{' held' if self.hold else ''} c{self.translation}"
+                f"{' tool' if self.tool else ''}{' stabilised' if self.stab else ''}")
 
 
 def contact_configs() -> list[ContactConfig]:
@@ -769,7 +775,8 @@ def contact_configs() -> list[ContactConfig]:
                         out.append(ContactConfig(
                             nfn, gauss, ax, nlgeom, law, substeps=(1, 3, "AUTO", 2)[j % 4],
                             theta=(1.0, 0.5, 0.0)[(j // 4) % 3], hold=(j // 3) % 2 == 1,
-                            translation=(0, 1, 2)[(j // 2) % 3], seed=len(out)))
+                            translation=(0, 1, 2)[(j // 2) % 3], seed=len(out),
+                            tool=j % 5 in (1, 3), stab=j % 7 in (2, 5)))
     return out
 
 
@@ -796,11 +803,14 @@ def _contact_pair(cfg: ContactConfig, params: dict):
     coords0 = (x0 + shift).reshape(-1, 2)
     faces = np.arange(nf * cfg.nfn).reshape(nf, cfg.nfn)
     par = dict(params, THETA=cfg.theta, SUBSTEPS=cfg.substeps, SUBTOL=0.01, SUBMAX=8)
+    n2 = 2 * len(coords0)
+    tool = None if not cfg.tool else [n2, n2 + 1] + ([] if cfg.ax else [n2 + 2])
     groups = []
     for kernel in (False, True):
         grp = ContactGroup("S->F", faces, np.arange(1, nf + 1), np.ones(nf, int), coords0,
-                           Foundation(np.asarray(CHAIN) + shift), "F", Coulomb(**par),
-                           gauss=cfg.gauss, axisymmetric=cfg.ax, thickness=2.5)
+                           Foundation(np.asarray(CHAIN) + shift, centre=(0.2, 0.4) + shift),
+                           "F", Coulomb(**par), gauss=cfg.gauss, axisymmetric=cfg.ax,
+                           thickness=2.5, tool_dofs=tool)
         grp.use_kernels(kernel)
         assert grp._kernel == kernel
         groups.append(grp)
@@ -827,6 +837,9 @@ def contact_batches() -> Iterator[Batch]:
                                       big_slides=cfg.law == "softening")
         c_old = [np.zeros(2), np.array([1e-3, 0.0]), np.array([1e-3, -1e-3])][cfg.translation]
         c_new = [np.zeros(2), np.array([3e-3, 0.0]), np.array([2e-3, 5e-4])][cfg.translation]
+        if cfg.tool and not cfg.ax:          # the tool turns about its reference point too
+            c_old, c_new = np.append(c_old, 2e-3), np.append(c_new, 7e-3)
+        stab = {"S->F": (50.0, 20.0, 0.05)} if cfg.stab else None
         frozen = rng.integers(-1, 3, ref.ng) if cfg.hold else None
         wiggle = 1e-4 * rng.standard_normal(u_new.shape)
         # the sequence of calls of an increment: the start penetration is computed, reused (same
@@ -836,11 +849,13 @@ def contact_batches() -> Iterator[Batch]:
                     (" start moved", u_old + wiggle, u_new, c_old, True,
                      "start recomputed (faces moved)"),
                     (" foundation start moved, no tangent", u_old + wiggle, u_new,
-                     c_old + [1e-4, 0.0], False, "start recomputed (foundation moved)")]
+                     c_old + 1e-4 * np.eye(len(c_old))[0], False,
+                     "start recomputed (foundation moved)")]
         for what, uo, un, co, tangent, step in sequence:
             ctx = StepContext(nlgeom=cfg.nlgeom, foundation_old={"F": co},
                               foundation_new={"F": c_new},
-                              freeze_contact=None if frozen is None else {"S->F": frozen})
+                              freeze_contact=None if frozen is None else {"S->F": frozen},
+                              stabilisation=stab)
 
             def reference(uo=uo, un=un, ctx=ctx, tangent=tangent):
                 rec.calls.clear()
@@ -942,13 +957,17 @@ def _contact_branches(cfg, ref_group, rec, u_new, c_new, step):
             c[f"NLGEOM, THETA={cfg.theta}" + (", sub-intervals" if nsub > 1 else "")] += 1
         if cfg.translation == 2:
             c["foundation translated across"] += 1
+        if cfg.tool:
+            c["tool's DOFs, AX translation" if cfg.ax else "tool's DOFs, turned"] += 1
+        if cfg.stab:
+            c["stabilised, damped points"] += int(np.count_nonzero(ref["state ps"]))
         if ref["failure"] is not None:
             c["failure: outside the cone" if "outside" in ref["failure"]
               else "failure: " + ref["failure"]] += 1
         x = ref_group._face_x(u_new)
         P, t = ref_group._axes_t(x, cfg.nlgeom)
         e_u, _ = _de_u_dt(t)
-        pr = ref_group.foundation.project(P, e_u, c_new)
+        pr = ref_group._project(P, e_u, (c_new[:2], c_new[2] if len(c_new) > 2 else 0.0))
         s = np.nan_to_num(pr.s)
         c["line misses (d = -FAR)"] += int((~pr.found).sum())
         c["round-off touching, snapped to d = 0"] += int((pr.found & (np.abs(pr.d) > 0) & (
@@ -1052,7 +1071,8 @@ def contact_required() -> list[str]:
            "NLGEOM, THETA=0.0", "NLGEOM, THETA=0.0, sub-intervals", "NLGEOM, THETA=0.5",
            "NLGEOM, THETA=0.5, sub-intervals", "NLGEOM, THETA=1.0",
            "NLGEOM, THETA=1.0, sub-intervals",
-           "foundation translated across",
+           "foundation translated across", "tool's DOFs, turned", "tool's DOFs, AX translation",
+           "stabilised, damped points",
            "failure: outside the cone", "raises: snap-back", "failure: degenerate face",
            "failure: non-finite", "no failure: classical held STICK",
            "no failure: predictor stays on the cone"]

@@ -295,13 +295,14 @@ def test_contact_tables(run):
 def test_reactions_table(run):
     out, _, results, _ = run
     header, rows = read_csv(out / "reactions.csv")
-    assert header == ["step", "increment", "time", "nset", "RF1", "RF2"]
+    assert header == ["step", "increment", "time", "nset", "RF1", "RF2", "RM6"]
     assert len(rows) == 6
     for k, row in enumerate(rows):
         r = results[k // 2]
         name = ("LEFT", "BOT")[k % 2]
         assert (int(row[0]), int(row[1]), float(row[2]), row[3]) == (1, r.increment, r.time, name)
         assert [float(row[4]), float(row[5])] == list(r.reactions_by_set[name])
+        assert float(row[6]) == 0.0            # no reference node among its nodes
 
 
 def test_status_and_log(run):

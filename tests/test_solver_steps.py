@@ -231,8 +231,8 @@ def test_foundation_motion_ramped_and_held(tmp_path):
     assert out.status == 0
     for t_new, old, new in g.seen:
         s = min(t_new, 1.0)
-        assert np.allclose(new["F"], [s, -2 * s])
-        assert np.allclose(old["F"], [max(s - 0.5, 0) if t_new <= 1 else 1.0, -2 * (max(s - 0.5, 0) if t_new <= 1 else 1.0)])
+        assert np.allclose(new["F"], [s, -2 * s, 0.0])          # (dx, dy, angle)
+        assert np.allclose(old["F"], [max(s - 0.5, 0) if t_new <= 1 else 1.0, -2 * (max(s - 0.5, 0) if t_new <= 1 else 1.0), 0.0])
     r = rec.results[0]
     assert np.allclose(r.foundations["F"], pts + [0.5, -1.0])
     assert np.allclose(rec.results[-1].foundations["F"], pts + [1.0, -2.0])

@@ -12,7 +12,8 @@ computes; it must survive, which shows that a survivor would be reported.
 
 Run it offline (each run compiles a kernel module, 10-30 s; the whole list takes about 25
 minutes on 2 cores; the last full run: 112 mutations, the 106 mutants caught, the 6 controls
-survived)::
+survived; the 7 mutations of a rigid tool and the stabilisation, added since, were run with
+``-k tool -k stabilisation -k "turned chain"``: all caught)::
 
     python tools/kernel_mutations.py              # all
     python tools/kernel_mutations.py -k hoop      # the mutations whose name contains "hoop"
@@ -222,7 +223,8 @@ MUTATIONS = [
     M("contact: OPEN hold lets the point close", CONTACT,
       "closable = h_g != OPEN", "closable = True"),
     M("control: OPEN hold's history kept by the group only", CONTACT,
-      "np_, ntau, nlam, nslip, ndis, nstat = 0.0, 0.0, slam, sslip, sdis, OPEN",
+      "np_, ntau, nlam, nslip, nvp, ndis, nstat = (0.0, 0.0, slam, sslip, svp,\n"
+      "                                                                sdis, OPEN)",
       "np_, ntau, nstat = 0.0, 0.0, OPEN",
       equivalent="the Coulomb point already keeps lam, slip and dissip of a point held OPEN "
                  "(never active): the group's override restates them"),
@@ -289,14 +291,31 @@ MUTATIONS = [
     M("contact: non-finite force not reported", CONTACT,
       "nonfinite += not math.isfinite(f[e, J])", "nonfinite += 0"),
     M("contact: start cache ignores the foundation's move", CONTACT,
-      "same = cached and cco[0] == co[0] and cco[1] == co[1]", "same = cached"),
+      "        if same and not cco[i] == co[i]:\n            same = False",
+      "        if False:\n            same = False"),
     M("contact: start cache ignores moved faces", CONTACT,
       "                if same and not xo[e, a, i] == cxo[e, a, i]:\n"
       "                    same = False",
       "                if False:\n                    same = False"),
     M("control: start penetration never reused", CONTACT,
-      "same = cached and cco[0] == co[0] and cco[1] == co[1]", "same = False",
+      "same = cached and cco.shape[0] == co.shape[0]", "same = False",
       equivalent="recomputing the start penetration gives the same numbers"),
+    # -- kernels/contact.py: a rigid tool (its DOFs, its rotation) and the stabilisation -------
+    M("contact: tool's rotation column of d dropped", CONTACT,
+      "Dd_end[nd + 2] = dP0 * qy - dP1 * qx", "Dd_end[nd + 2] = 0.0"),
+    M("contact: turned chain's derivative not turned back", CONTACT,
+      "dP0, dP1 = cs * dP0 - sn_ * dP1, sn_ * dP0 + cs * dP1", "dP0, dP1 = dP0, dP1"),
+    M("contact: tool's rotation ignored in the slip", CONTACT,
+      "                    rel0 = rel0 - (qa0 - arm0) / nsub\n", ""),
+    M("contact: tool moment's moving arm dropped", CONTACT,
+      "                            elif J == nd:\n                                dm -= F1",
+      "                            elif J == nd:\n                                dm -= 0.0"),
+    M("contact: tool rows not negated", CONTACT,
+      "            f[e, r] = -f[e, r]", "            f[e, r] = f[e, r]"),
+    M("contact: stabilisation's weight derivative dropped", CONTACT,
+      "sa = stab[0] * (wn + dd * dwn)", "sa = stab[0] * wn"),
+    M("contact: stabilisation's tangential traction dropped", CONTACT,
+      "ps, ts = stab[0] * wn * dd, stab[1] * wts * dvs", "ps, ts = stab[0] * wn * dd, 0.0"),
     # -- kernels/contact.py: the projection ---------------------------------------------------
     M("projection: end half-lines skipped", CONTACT,
       "            if not ds * sign > 0:\n                continue",
@@ -332,7 +351,7 @@ MUTATIONS = [
       "roots[:, 2 * j + col] = np.nan"),
     M("NumPy: THETA ignored in the axes", "lagamine_py/elements/contact.py",
       "a_th = (k - 1 + theta) / nsub", "a_th = k / nsub"),
-    M("NumPy: YIELD_RTOL changed", "lagamine_py/laws/j2.py",
+    M("NumPy: YIELD_RTOL changed", "lagamine_py/kernels/layout.py",
       "YIELD_RTOL = 1e-12", "YIELD_RTOL = 1e-11"),
 ]
 

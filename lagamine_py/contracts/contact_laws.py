@@ -6,7 +6,10 @@ then a sweep of tangential increments for the first that slips); every tangent e
 sub-intervals as the contact element chains them (:func:`lagamine_py.laws.contact_point.drive`)
 against differences of whole paths.  The frozen holds: OPEN gives no contact and keeps the
 history; STICK stays elastic beyond the cone, ``tau = tau0 + k dv`` with the stick stiffness
-``k`` measured on the free law (a linear tangential elasticity).
+``k`` measured on the free law (a linear tangential elasticity).  ``stored_energy()`` (when the
+law has one) is checked along a closed path (press, slide both ways): the work of the contact
+stresses ``1/2 (p_n + p_n+1) dd + 1/2 (tau_n + tau_n+1) dv`` against the change of the stored
+energy plus the trapezoidal friction term ``1/2 (tau_n + tau_n+1) dvp`` (the energy balance's).
 """
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ from .findings import (ContractFailure, Finding, Suite, all_within, changed_keys
 
 
 CONTACT_ITEMS = ("parameters", "state and status", "tangent entries", "tangent chained",
-                 "state unchanged", "admissible path", "frozen holds")
+                 "state unchanged", "admissible path", "frozen holds", "energy")
 
 _D0 = 1e-3              # penetration of the probes; tangential increments follow the law's
                         # own slip onset
@@ -297,6 +300,36 @@ def _contact_frozen(law, probe: _ContactProbe) -> str:
     return all_within(measures)
 
 
+def _contact_energy(law, probe: _ContactProbe) -> str:
+    from .findings import Skip
+    try:
+        stored0 = float(np.asarray(law.stored_energy(probe.closed)).ravel()[0])
+    except NotImplementedError as exc:
+        raise Skip(f"{exc}: the energy balance (*CHECK, TYPE=ENERGY) cannot use it") from None
+    st = law.init_state(1)
+    d = 0.0
+    work = friction = peak = gap = 0.0
+    stored_start = float(np.asarray(law.stored_energy(st)).ravel()[0])
+    steps = [(_D0 / 20, 0.0)] * 20                                    # press to d0
+    steps += [(0.0, probe.dv_slip / 5)] * 40 + [(0.0, -probe.dv_slip / 5)] * 80  # slide, back
+    steps += [(_D0 / 40, probe.dv_slip / 10)] * 20                    # press while sliding
+    for du, dv in steps:
+        d += du
+        new, _ = _cupdate(law, st, d, du, dv)
+        p0, p1 = float(st["p"][0]), float(new["p"][0])
+        t0, t1 = float(st["tau"][0]), float(new["tau"][0])
+        work += 0.5 * (p0 + p1) * du + 0.5 * (t0 + t1) * dv
+        friction += 0.5 * (t0 + t1) * (float(new["vp"][0]) - float(st["vp"][0]))
+        stored = float(np.asarray(law.stored_energy(new)).ravel()[0])
+        peak = max(peak, abs(work))
+        gap = max(gap, abs(work - (stored - stored_start) - friction))
+        st = new
+    require(stored0 >= 0.0, f"stored_energy of a closed point is {stored0:.3g} < 0")
+    return within(f"press, slide both ways ({len(steps)} sub-intervals; at the end work "
+                  f"{work:.4g}, friction {friction:.4g}): max |work - (stored + friction)| / max "
+                  f"|work|", gap / max(peak, 1e-300), 1e-6)
+
+
 def check_contact_law(cls) -> list[Finding]:
     """The contact-law contract (:class:`~lagamine_py.laws.base.ContactLaw`) on ``cls``."""
     s = Suite(CONTACT_ITEMS)
@@ -315,4 +348,5 @@ def check_contact_law(cls) -> list[Finding]:
     s.run("state unchanged", _contact_state_unchanged, law, probe)
     s.run("admissible path", _contact_admissible, law, probe)
     s.run("frozen holds", _contact_frozen, law, probe)
+    s.run("energy", _contact_energy, law, probe)
     return s.findings

@@ -4,7 +4,9 @@ The law is built from ``example_values()`` and driven along material-point paths
 (:func:`lagamine_py.laws.material_point.drive`, uniaxial stress and tension-shear) with its own
 tangent into plastic states; at those states the tangent is compared with central differences
 of ``update()``, objectivity with a rotation of the trial strain, batched results with
-point-by-point ones; the committed state must come back unchanged.
+point-by-point ones; the committed state must come back unchanged.  ``energy()`` (when the law
+has one) is checked along a loading, unloading and shear path of total strain against the work
+of the stresses, ``sum 1/2 (s_n + s_n+1) . (e_n+1 - e_n)``.
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ from .findings import Finding, Skip, Suite, all_within, changed_keys, require, w
 
 
 LAW_ITEMS = ("parameters", "init_state", "elastic moduli", "material-point paths",
-             "tangent", "objectivity", "state unchanged", "batched shapes")
+             "tangent", "objectivity", "state unchanged", "batched shapes", "energy")
 
 _PATHS = (("uniaxial stress", np.array([1.0, 0.0, 0.0, 0.0]), (1, 2, 3)),
           ("tension-shear, s33 = 0", np.array([1.0, -0.5, 0.0, 1.5]), (2,)))
@@ -214,6 +216,72 @@ def _law_moduli(law) -> str:
                   float(np.abs(D0 - Dh).max() / E), 1e-8)
 
 
+#: the energy path: legs of total strain (deviatoric tension, half unloading, shear, back to
+#: zero), times an amplitude grown until the law yields on it
+_ENERGY_LEGS = (np.array([1.0, -0.5, -0.5, 0.0]), np.array([0.5, -0.25, -0.25, 0.0]),
+                np.array([0.5, -0.25, -0.25, 1.5]), np.zeros(4))
+_ENERGY_STEPS = 60
+
+
+def _energy_path(law, amplitude: float):
+    """Drive one point along the legs: the largest work of the stresses along the path
+    (trapezoidal), the largest ``|work - (stored + dissipated)|`` met, the work, stored and
+    dissipated energy at the end, the smallest dissipation increment and whether it yielded;
+    None when the law refused an increment."""
+    st = {k: np.asarray(v)[None] for k, v in law.init_state(()).items()}
+    eps, sig = np.zeros(4), np.zeros(4)
+    work = dissipated = 0.0
+    smallest = np.inf
+    stored = 0.0
+    peak = gap = 0.0
+    start = np.zeros(4)
+    for leg in _ENERGY_LEGS:
+        end = amplitude * leg
+        for k in range(1, _ENERGY_STEPS + 1):
+            target = start + (end - start) * k / _ENERGY_STEPS
+            de = target - eps
+            s_new, _, new, ok = law.update((st["eps_e"] + de).reshape(1, 4), st)
+            if not np.all(ok):
+                return None
+            s_new = np.asarray(s_new, float)[0]
+            work += 0.5 * float((sig + s_new) @ de)
+            psi, dis = law.energy(st, new)
+            stored = float(np.asarray(psi).ravel()[0])
+            dissipated += float(np.asarray(dis).ravel()[0])
+            smallest = min(smallest, float(np.asarray(dis).ravel()[0]))
+            peak = max(peak, abs(work))
+            gap = max(gap, abs(work - stored - dissipated))
+            st, eps, sig = new, target, s_new
+        start = end
+    return (peak, gap, work, stored, dissipated, smallest,
+            bool(np.any(np.asarray(st["peeq"]) > 0)))
+
+
+def _law_energy(law) -> str:
+    init = {k: np.asarray(v)[None] for k, v in law.init_state(()).items()}
+    try:
+        law.energy(init, init)
+    except NotImplementedError as exc:
+        raise Skip(f"{exc}: the energy balance (*CHECK, TYPE=ENERGY) cannot use it") from None
+    E, _ = law.elastic_moduli()
+    found = None
+    for amplitude in 1e-4 * 2.0 ** np.arange(14):      # up to about 1: until it yields
+        found = _energy_path(law, amplitude)
+        require(found is not None, f"the law refused an increment of the energy path (strain "
+                                   f"amplitude {amplitude:.2g}, {_ENERGY_STEPS} steps a leg)")
+        if found[6]:
+            break
+    peak, gap, work, stored, dissipated, smallest, plastic = found
+    scale = max(peak, 1e-300)
+    require(smallest >= -1e-10 * scale, f"a negative dissipation increment: {smallest:.3g} "
+                                        f"(the largest work {peak:.3g})")
+    what = "plastic" if plastic else "elastic only (the law did not yield up to strain 0.8)"
+    return within(f"{what} path of {4 * _ENERGY_STEPS} increments to strain {amplitude:.2g} and "
+                  f"back (at its end work {work:.4g}, stored {stored:.4g}, dissipated "
+                  f"{dissipated:.4g}): max |work - (stored + dissipated)| / max |work|",
+                  gap / scale, 1e-6)
+
+
 def check_material_law(cls) -> list[Finding]:
     """The material-law contract (:class:`~lagamine_py.laws.base.MaterialLaw`) on ``cls``."""
     s = Suite(LAW_ITEMS)
@@ -239,4 +307,5 @@ def check_material_law(cls) -> list[Finding]:
     s.run("objectivity", _objectivity, law, points)
     s.run("state unchanged", _law_state_unchanged, law, points)
     s.run("batched shapes", _batched_shapes, law, points)
+    s.run("energy", _law_energy, law)
     return s.findings

@@ -22,7 +22,8 @@ from .findings import Finding, Skip, Suite, require
 WRITER_ITEMS = ("hooks", "flushed", "files")
 
 #: the sample run: a block pressed onto a flat and pushed sideways; the first increment of the
-#: push fails (MAXIT=3) and is cut back, field output every second increment of the push
+#: push fails (MAXIT=3) and is cut back, field output every second increment of the push; its
+#: energy balance is kept (energy.csv)
 SAMPLE_DECK = """** lagamine_py contract sample: a block pressed onto a flat, then pushed sideways
 *MESH, NAME=BLOCK, TYPE=Q8PE, X0=0, Y0=0, LX=4, LY=2, NX=2, NY=1
 *MATERIAL, NAME=STEEL, LAW=ELASTIC
@@ -35,6 +36,7 @@ E=210000, NU=0.3
 *CONTACT LAW, NAME=DRY, TYPE=COULOMB
 KP=2e6, KT=2e6, PHI=0.3
 *CONTACT, SURFACE=BLOCK_BOTTOM, FOUNDATION=FLAT, LAW=DRY, GAUSS=3
+*CHECK, NAME=ENERGY, TYPE=ENERGY
 *STEP, NAME=PRESS
 *STATIC
 0.5, 1, 1e-3, 0.5

@@ -80,9 +80,12 @@ class SingularMatrixError(ArithmeticError):
     beyond :data:`ILL_CONDITIONED_SPAN` between them, a pivot test relative to the largest
     cannot tell an unrestrained DOF from the round-off of eliminating the stiff ones, and the
     message says *ill-conditioned* (a penalty far stiffer than the bodies) instead of blaming
-    unrestrained DOFs."""
+    unrestrained DOFs.  ``matrix``: the CSR data of the full tangent when Newton knows it (for a
+    diagnosis of the rigid-body modes, :func:`lagamine_py.solver.tools.explain_singular`), else
+    None."""
 
     reason = "singular matrix"
+    matrix: np.ndarray | None = None
 
     def __init__(self, dofs, detail: str = "", node_ids=None, span=None):
         self.dofs = np.asarray(sorted(set(int(d) for d in dofs)), dtype=np.int64)
@@ -95,16 +98,20 @@ class SingularMatrixError(ArithmeticError):
         lo, hi = self.span or (0.0, 0.0)
         return lo > 0 and hi > ILL_CONDITIONED_SPAN * lo
 
-    def describe(self, node_ids=None) -> str:
-        """Message naming the DOFs as ``node <id> x|y`` (deck ids when ``node_ids`` is given)."""
-        names = []
+    def describe(self, node_ids=None, names=None) -> str:
+        """Message naming the DOFs as ``node <id> x|y`` (deck ids when ``node_ids`` is given),
+        or by ``names`` (one per global DOF: ``node 7 rotation`` for a reference node's)."""
+        label = "node" if node_ids is not None or names is not None else "node row"
+        listed = []
         for d in self.dofs[:20]:
+            if names is not None and int(d) < len(names):
+                listed.append(str(names[int(d)]))
+                continue
             row, c = divmod(int(d), 2)
-            node = int(node_ids[row]) if node_ids is not None else row
-            names.append(f"node {node} {'xy'[c]}")
+            node = int(node_ids[row]) if node_ids is not None and row < len(node_ids) else row
+            listed.append(f"node {node} {'xy'[c]}")
         more = f" and {len(self.dofs) - 20} more" if len(self.dofs) > 20 else ""
-        what = ", ".join(names) + more if names else "(could not tell which)"
-        label = "node" if node_ids is not None else "node row"
+        what = ", ".join(listed) + more if listed else "(could not tell which)"
         if self.ill_conditioned:
             lo, hi = self.span
             text = (f"the stiffness matrix is ill-conditioned, singular to working precision: "

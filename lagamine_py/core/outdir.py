@@ -48,7 +48,8 @@ RECORD_FILE = "lagamine-run.json"
 #: record is recognised as holding results, and what ``overwrite`` removes from it
 OUTPUT_PATTERNS = ("{name}.sta", "{name}.log", "{name}.pvd", "{name}_*.vtu", "*.sta", "*.pvd",
                    "*.vtu", "contact.csv", "contact_totals.csv", "reactions.csv",
-                   "displacements.csv", "tool_forces.csv", "restart.npz", "*.tmp", "*.tmp.npz")
+                   "displacements.csv", "tool_forces.csv", "energy.csv", "restart.npz", "*.tmp",
+                   "*.tmp.npz")
 
 
 class OutputDirError(Exception):

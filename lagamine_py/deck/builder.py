@@ -26,10 +26,10 @@ from ..core.params import ParamError, did_you_mean, validate_params
 from ..core.tensors import right_normal
 from ..elements.edges import surface_faces
 from ..elements.structured import SIDES, rectangle
-from ..foundation import Foundation
+from ..foundation import Foundation, circle_points
 from ..model import (CONTROL_PARAMS, OUTPUT_FIELDS, Amplitude, Boundary, CLoad, ContactLawSpec,
-                     ContactSpec, DLoad, ElementBlock, FoundationMotion, FoundationSpec,
-                     MaterialSpec, Model, OutputRequest, Step, Surface, Where)
+                     ContactSpec, DLoad, ElementBlock, FoundationMotion, FoundationSpec, LawChange,
+                     MaterialSpec, Model, OutputRequest, Stabilisation, Step, Surface, Where)
 from . import abaqus
 from .errors import Problems
 from .grammar import Block, Num, NumberRows
@@ -87,6 +87,8 @@ class _Builder(ImportMixin):
         self.importing = None                # the *IMPORT being read (its element types)
         self.import_failed = False           # an *IMPORT could not be read: its names are missing
         self.row_map: np.ndarray | None = None   # old node row -> row after unused nodes left out
+        self.ref_rows: set[int] = set()      # node-table rows of the tools' reference nodes
+        self.centred: set[str] = set()       # foundations given a centre (XC=, YC=, a CIRCLE)
 
     # ------------------------------------------------------------ helpers
     def _definitions(self) -> dict[tuple[str, str], tuple[str, int, int]]:
@@ -738,17 +740,34 @@ class _Builder(ImportMixin):
         name = params["NAME"]
         if self._defined_twice(blk, "foundation", name, self.m.foundations):
             return
+        placement = self._foundation_placement(blk, params)
+        if placement is None:
+            return
         if params["CURVE"] is not None:
-            if rows:
-                self.pb.add(rows[0][0].file, rows[0][0].line, blk.keyword,
-                            "give the points or CURVE=, not both")
+            if rows or params["CIRCLE"]:
+                where = (rows[0][0].file, rows[0][0].line) if rows else (blk.file, blk.line)
+                self.pb.add(*where, blk.keyword, "give the points, CURVE= or CIRCLE=, one of them")
                 return
             pts = self._curve_points(blk, params["CURVE"], bool(params["REVERSE"]))
             if pts is not None:
-                self.m.foundations[name] = FoundationSpec(name, pts, blk.where)
+                self.m.foundations[name] = FoundationSpec(name, pts, blk.where, *placement)
             return
         if params["REVERSE"]:
             self.pb.at(blk, "REVERSE goes with CURVE= (give the points in the order you want)")
+            return
+        if params["CIRCLE"]:
+            pts = self._circle(blk, params, rows)
+            if pts is None:
+                return
+            ref, centre = placement
+            if ref is None and name not in self.centred:       # turns about the circle's centre
+                centre = tuple(float(v) for v in rows[0][1][:2])
+                self.centred.add(name)
+            problems = Foundation(pts, name).shape_problems()
+            for message in problems:
+                self.pb.at(blk, f"foundation {name}: {message}")
+            if not problems:
+                self.m.foundations[name] = FoundationSpec(name, pts, blk.where, ref, centre)
             return
         pts = np.array([vals for _row, vals in rows], float)
         if not _sane_coordinates(pts):
@@ -769,7 +788,42 @@ class _Builder(ImportMixin):
         for message in problems:
             self.pb.at(blk, f"foundation {name}: {message}")
         if not problems:
-            self.m.foundations[name] = FoundationSpec(name, pts, blk.where)
+            self.m.foundations[name] = FoundationSpec(name, pts, blk.where, *placement)
+
+    def _foundation_placement(self, blk, params):
+        """``(ref_node row or None, centre)`` of a *FOUNDATION, or None after reporting: REF
+        NODE must be a node defined before (its row in the node table; remapped when unused
+        nodes are left out), and goes without XC=, YC=."""
+        ref, xc, yc = params["REF NODE"], params["XC"], params["YC"]
+        if ref is None:
+            if xc is not None or yc is not None:
+                self.centred.add(params["NAME"])
+            return None, (float(xc or 0.0), float(yc or 0.0))
+        row = int(self.nodes.rows([ref])[0])
+        if row < 0:
+            self._missing(blk.file, blk.line, blk.keyword, "NODE", ref, (), "REF NODE: ")
+            return None
+        self.ref_rows.add(row)        # kept even if the foundation fails: no follow-on message
+        if xc is not None or yc is not None:
+            self.pb.at(blk, "give REF NODE= or XC=, YC=, not both: a tool with a reference node "
+                            "turns about it")
+            return None
+        return row, tuple(float(v) for v in self.nodes.coords()[row])
+
+    def _circle(self, blk, params, rows) -> np.ndarray | None:
+        """The points of a CIRCLE= foundation (:func:`lagamine_py.foundation.circle_points`)."""
+        row, (xc, yc, radius, start, end, arcs) = rows[0]
+        bad = []
+        if not radius > 0:
+            bad.append(f"the radius must be > 0, got {radius:g}")
+        if not start < end < start + 360.0:
+            bad.append(f"the angles must satisfy start < end < start + 360 (degrees, counter-clockwise; "
+                       f"a whole circle is closed, and a tool profile must be open), got {start:g}, {end:g}")
+        if arcs < 1:
+            bad.append(f"arcs must be >= 1, got {arcs}")
+        for message in bad:
+            self.pb.add(row.file, row.line, blk.keyword, message)
+        return None if bad else circle_points(xc, yc, radius, start, end, arcs, params["CIRCLE"])
 
     def _kw_contact_law(self, blk, params, pairs):
         name = params["NAME"]
@@ -788,6 +842,11 @@ class _Builder(ImportMixin):
                 self._missing(blk.file, blk.line, blk.keyword, kind, params[key], table, f"{key}={params[key]}: ")
                 ok = False
         if ok:
+            for c in self.m.contacts:
+                if (c.surface, c.foundation) == (params["SURFACE"], params["FOUNDATION"]):
+                    self.pb.at(blk, f"contact pair {c.surface}->{c.foundation} is already defined (line "
+                                    f"{c.where.line}); change its law in a step with *CHANGE CONTACT LAW")
+                    return
             self.m.contacts.append(ContactSpec(params["SURFACE"], params["FOUNDATION"], params["LAW"],
                                                params["GAUSS"], blk.where))
 
@@ -837,11 +896,33 @@ class _Builder(ImportMixin):
             self._orient(grp)
         self._axisymmetry()
         self._surfaces_on_boundary()
+        self._reference_nodes_apart()
         self._leave_out_unused_nodes()
         self._coincident_nodes()
         self._assemble_blocks()
+        self._energy_laws()
         if not self.pb:
             self._foundation_sides()
+
+    def _energy_laws(self) -> None:
+        """``*CHECK, TYPE=ENERGY`` needs every material law and contact law to report its energy
+        (:meth:`MaterialLaw.energy`, :meth:`ContactLaw.stored_energy`): refused here, as the run
+        would refuse it."""
+        checks = [c for c in self.m.checks if c["type"] == "ENERGY"]
+        if not checks:
+            return
+        specs = [("laws", m.law, m.params, m.where) for m in self.m.materials.values()]
+        specs += [("contact_laws", c.type, c.params, c.where) for c in self.m.contact_laws.values()]
+        for kind, name, params, where in specs:
+            law = registry.get(kind, name)(**params)
+            try:
+                if kind == "laws":
+                    st = law.init_state((1, 1))
+                    law.energy(st, st)
+                else:
+                    law.stored_energy(law.init_state(1))
+            except NotImplementedError as exc:
+                self.pb.at(checks[0]["where"], f"TYPE=ENERGY: {exc} (defined at line {where.line})")
 
     def _foundation_sides(self) -> None:
         """Each foundation must have its contact bodies on its left (the direction of travel of
@@ -973,6 +1054,7 @@ class _Builder(ImportMixin):
         used = np.zeros(len(m.node_ids), bool)
         for grp in self._solid_groups():
             used[grp.conn().ravel()] = True
+        used[sorted(self.ref_rows)] = True                 # a tool's reference node: kept
         if used.all() or not len(used):
             return
         tool = np.zeros(len(used), bool)               # nodes of imported tool profiles: expected
@@ -994,6 +1076,26 @@ class _Builder(ImportMixin):
         for name, rows in m.nsets.items():
             new = row_map[np.asarray(rows, np.int64)]
             m.nsets[name] = new[new >= 0]
+        for spec in m.foundations.values():
+            if spec.ref_node is not None:
+                spec.ref_node = int(row_map[spec.ref_node])
+
+    def _reference_nodes_apart(self) -> None:
+        """A tool's reference node carries a rigid body's motion: no element may use it."""
+        if not self.ref_rows:
+            return
+        for grp in self._solid_groups():
+            conn = grp.conn()
+            for spec in self.m.foundations.values():
+                if spec.ref_node is None:
+                    continue
+                hit = np.flatnonzero((conn == spec.ref_node).any(axis=1))
+                if len(hit):
+                    nid = int(self.m.node_ids[spec.ref_node])
+                    self.pb.at(spec.where, f"REF NODE={nid} of foundation {spec.name} is a node of "
+                                           f"element {int(grp.ids()[hit[0]])}: a reference node carries "
+                                           f"the rigid tool's motion and must be used by no element "
+                                           f"(define a node of its own, at the tool's centre say)")
 
     def _coincident_nodes(self) -> None:
         """A notice for nodes at the same place (within 1e-9 of the model's size): the mesh is
@@ -1004,6 +1106,10 @@ class _Builder(ImportMixin):
         tol = 1e-9 * max(np.ptp(xy, axis=0).max(), 1e-300)
         q = np.round((xy - xy.min(axis=0)) / tol).astype(np.int64)
         key = q[:, 0] * (int(q[:, 1].max()) + 1) + q[:, 1]
+        # a tool's reference node often sits on the body (a punch's centre on its face): not a mesh
+        for spec in self.m.foundations.values():
+            if spec.ref_node is not None:
+                key[spec.ref_node] = -1 - spec.ref_node
         _, inverse, count = np.unique(key, return_inverse=True, return_counts=True)
         inverse = inverse.ravel()
         twice = count[inverse] > 1
@@ -1125,25 +1231,49 @@ class _Builder(ImportMixin):
             first = vals[1]
             last = vals[2] if len(vals) > 2 else first
             value = vals[3] if len(vals) > 3 else 0.0
-            if not 1 <= first <= last <= 2:
+            dofs = tuple(d for d in (1, 2, 6) if first <= d <= last)
+            if not (1 <= first <= last <= 6 and dofs):
                 self.pb.add(row.file, row.line, blk.keyword,
-                            f"DOFs must satisfy 1 <= first <= last <= 2 (1 = x or r, 2 = y or z), got {first}, {last}")
+                            f"DOFs must satisfy 1 <= first <= last <= 6 and include 1 (x or r), 2 (y "
+                            f"or z) or 6 (the rotation of a tool's reference node), got {first}, {last}")
                 continue
             nodes = self._nodes_of(blk, row, vals[0])
-            if nodes is not None:
+            if nodes is not None and self._rotation_ok(blk, row, nodes, 6 in dofs):
                 self.step.boundaries.append(Boundary(str(vals[0]), nodes, first, last, value,
-                                                     params["AMPLITUDE"], Where(row.file, row.line, blk.keyword)))
+                                                     params["AMPLITUDE"], Where(row.file, row.line, blk.keyword),
+                                                     dofs))
+
+    def _rotation_ok(self, blk, row, nodes, rotation: bool) -> bool:
+        """DOF 6 exists on the reference nodes of tools only (and not in axisymmetry)."""
+        if not rotation:
+            return True
+        if self.m.axisymmetric:
+            self.pb.add(row.file, row.line, blk.keyword,
+                        "DOF 6: in an axisymmetric model a tool does not rotate (its reference node has "
+                        "DOFs 1 and 2 only)")
+            return False
+        rot = set(self.m.rotation_nodes)
+        # a node named REF NODE by a *FOUNDATION that failed: reported there, not again here
+        named = {int(self.row_map[r]) if self.row_map is not None else r for r in self.ref_rows}
+        other = [int(r) for r in np.asarray(nodes).ravel() if int(r) not in rot | named]
+        if other:
+            self.pb.add(row.file, row.line, blk.keyword,
+                        f"DOF 6 (a rotation) exists only on the reference node of a tool (*FOUNDATION, "
+                        f"REF NODE=); node {int(self.m.node_ids[other[0]])} is not one")
+            return False
+        return True
 
     def _kw_cload(self, blk, params, rows):
         if not self._amplitude(blk, params["AMPLITUDE"]):
             return
         self._op(blk, params)
         for row, (target, dof, value) in rows:
-            if dof not in (1, 2):
-                self.pb.add(row.file, row.line, blk.keyword, f"dof must be 1 (x or r) or 2 (y or z), got {dof}")
+            if dof not in (1, 2, 6):
+                self.pb.add(row.file, row.line, blk.keyword, f"dof must be 1 (x or r), 2 (y or z) or 6 (a "
+                                                             f"moment on a tool's reference node), got {dof}")
                 continue
             nodes = self._nodes_of(blk, row, target)
-            if nodes is not None:
+            if nodes is not None and self._rotation_ok(blk, row, nodes, dof == 6):
                 self.step.cloads.append(CLoad(str(target), nodes, dof, value, params["AMPLITUDE"],
                                               Where(row.file, row.line, blk.keyword)))
 
@@ -1167,9 +1297,62 @@ class _Builder(ImportMixin):
         if name not in self.m.foundations:
             self._missing(blk.file, blk.line, blk.keyword, "FOUNDATION", name, self.m.foundations)
             ok = False
-        if ok:
-            dx, dy = rows[0][1]
-            self.step.motions.append(FoundationMotion(name, dx, dy, params["AMPLITUDE"], blk.where))
+        if not ok:
+            return
+        row, vals = rows[0]
+        dx, dy = vals[:2]
+        angle = vals[2] if len(vals) > 2 else 0.0
+        spec = self.m.foundations[name]
+        if angle != 0.0 and self.m.axisymmetric:
+            self.pb.add(row.file, row.line, blk.keyword, "an angle: in an axisymmetric model a tool does "
+                                                         "not rotate")
+            return
+        if spec.ref_node is not None:       # the tool's motion is that of its reference node
+            nid = str(int(self.m.node_ids[spec.ref_node]))
+            for dof, value in ((1, dx), (2, dy), (6, angle)):
+                if dof == 6 and self.m.axisymmetric:
+                    continue
+                self.step.boundaries.append(Boundary(nid, np.array([spec.ref_node]), dof, dof, value,
+                                                     params["AMPLITUDE"], blk.where, (dof,)))
+            return
+        if angle != 0.0 and name not in self.centred:
+            self.pb.add(row.file, row.line, blk.keyword,
+                        f"foundation {name} has no point to turn about: give it REF NODE= (a node at its "
+                        f"centre) or XC=, YC= (line {spec.where.line})")
+            return
+        self.step.motions.append(FoundationMotion(name, dx, dy, params["AMPLITUDE"], blk.where, angle))
+
+    def _kw_change_contact_law(self, blk, params, data):
+        surface, foundation, law = params["SURFACE"], params["FOUNDATION"], params["LAW"]
+        if law not in self.m.contact_laws:
+            self._missing(blk.file, blk.line, blk.keyword, "CONTACT LAW", law, self.m.contact_laws,
+                          f"LAW={law}: ")
+            return
+        pairs = [f"{c.surface}->{c.foundation}" for c in self.m.contacts]
+        pair = f"{surface}->{foundation}"
+        if pair not in pairs:
+            self.pb.at(blk, f"no contact pair {pair} (SURFACE={surface}, FOUNDATION={foundation}): "
+                            f"the *CONTACT pairs are {', '.join(pairs) or 'none'}"
+                            f"{did_you_mean(pair, pairs)}")
+            return
+        self.step.law_changes = [c for c in self.step.law_changes if c.pair != pair]
+        self.step.law_changes.append(LawChange(pair, law, blk.where))
+
+    def _kw_contact_stabilization(self, blk, params, data):
+        if self.step.stabilisation is not None:
+            self.pb.at(blk, f"step {self.step.name} has two *CONTACT STABILIZATION")
+            return
+        surface, foundation = params["SURFACE"], params["FOUNDATION"]
+        pairs = tuple(f"{c.surface}->{c.foundation}" for c in self.m.contacts
+                      if surface in (None, c.surface) and foundation in (None, c.foundation))
+        if not pairs:
+            self.pb.at(blk, "no contact pair to stabilise" + (
+                f" (SURFACE={surface}, FOUNDATION={foundation}; the pairs are "
+                f"{', '.join(f'{c.surface}->{c.foundation}' for c in self.m.contacts) or 'none'})"
+                if surface or foundation else ": the model has no *CONTACT"))
+            return
+        self.step.stabilisation = Stabilisation(params["FACTOR"], params["TANGENTIAL"], params["RANGE"],
+                                                pairs, blk.where)
 
     def _kw_output(self, blk, params, data):
         fields = tuple(f.upper() for f in re.split(r"[\s/;:+]+", params["FIELDS"] or "") if f)

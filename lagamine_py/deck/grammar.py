@@ -230,7 +230,8 @@ class _Grammar:
         numbers_line.set_parse_action(self._numbers_line)
 
         kw = pp.Regex(r"\*[ \t]*[A-Za-z][\w\-]*(?:[ \t]+[A-Za-z][\w\-]*)*").set_name("*KEYWORD")
-        pname = pp.Regex(r"[A-Za-z_][\w\-]*").set_name("parameter name")
+        # a name may hold single spaces (Abaqus's REF NODE=): words until "=", "," or the end
+        pname = pp.Regex(r"[A-Za-z_][\w\-]*(?:[ \t]+[A-Za-z_][\w\-]*)*").set_name("parameter name")
         pvalue = (pp.QuotedString('"') | pp.Regex(r"[^,=\n\"]*[^,=\s\"]")).set_name("parameter value")
         param = pp.Group(pname + pp.Optional(pp.Suppress("=") + pvalue)).set_name("NAME=VALUE")
         kw_line = (kw + pp.ZeroOrMore(comma + param) + pp.Optional(comma)
@@ -271,7 +272,8 @@ class _Grammar:
         return DataLine(self.lineno(loc), list(t))
 
     def _kw_line(self, s, loc, t):
-        params = [(g[0].upper(), g[1].strip() if len(g) > 1 else None) for g in t[1:]]
+        params = [(" ".join(g[0].split()).upper(), g[1].strip() if len(g) > 1 else None)
+                  for g in t[1:]]
         return KeywordLine(self.lineno(loc), _keyword_name(t[0]), params)
 
     def parse_text(self, text: str, offset: int = 0) -> list:

@@ -154,8 +154,26 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
                                     _name("CURVE", doc="a curve of an *IMPORT (a 1D group of lines apart "
                                                        "from the body): its lines, chained, are the arcs"),
                                     Param("REVERSE", flag=True, default=None,
-                                          doc="run the CURVE the other way (the body on its left)")),
+                                          doc="run the CURVE the other way (the body on its left)"),
+                                    Param("REF NODE", int, None, bounds=(1, None),
+                                          doc="a node of *NODE, used by no element, that carries the "
+                                              "rigid tool's motion: DOFs 1, 2 and, in plane strain, 6 "
+                                              "(the rotation, radians, counter-clockwise), prescribed by "
+                                              "*BOUNDARY or loaded by *CLOAD; its reactions are the tool's "
+                                              "force and moment"),
+                                    Param("XC", float, None, unit="length",
+                                          doc="without REF NODE: x of the point *FOUNDATION MOTION turns "
+                                              "the tool about (default 0, or the CIRCLE's centre)"),
+                                    Param("YC", float, None, unit="length", doc="likewise y"),
+                                    Param("CIRCLE", str, None, choices=("INSIDE", "OUTSIDE"), upper=True,
+                                          doc="generate the points on a circle: the contact bodies lie "
+                                              "INSIDE it (a die) or OUTSIDE (a roll)")),
             Data("rows", (Col("x"), Col("y")), doc="`x, y` points, an odd count >= 3 (none with CURVE=)"),
+            (("CIRCLE", Data("rows", (Col("xc"), Col("yc"), Col("radius"), Col("start angle"),
+                                      Col("end angle"), Col("arcs", "int")), min_lines=1, max_lines=1,
+                             doc="`xc, yc, radius, start angle, end angle, arcs`: the arc from start to "
+                                 "end angle (degrees, counter-clockwise from +x) as `arcs` parabolic "
+                                 "arcs")),),
             doc="rigid foundation: parabolic arcs through points (1,2,3), (3,4,5), ..."),
     Keyword("CONTACT LAW", "model", (_name("NAME", True), _name("TYPE", True, doc="contact law plugin")),
             _PAIRS, doc="contact law: the plugin's parameters"),
@@ -178,16 +196,38 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
     Keyword("BOUNDARY", "step", (_AMP, _OP),
             Data("rows", (Col("node or nset", "ref"), Col("first dof", "int"), Col("last dof", "int", True),
                           Col("value", optional=True)), min_lines=1,
-                 doc="`node-or-nset, first dof, last dof, value`"), doc="imposed displacements"),
+                 doc="`node-or-nset, first dof, last dof, value` (DOFs 1, 2; 6 the rotation of a tool's "
+                     "reference node, radians)"), doc="imposed displacements"),
     Keyword("CLOAD", "step", (_AMP, _OP),
             Data("rows", (Col("node or nset", "ref"), Col("dof", "int"), Col("value")), min_lines=1,
-                 doc="`node-or-nset, dof, value`"), doc="nodal forces (per node)"),
+                 doc="`node-or-nset, dof, value` (DOF 6 on a tool's reference node: a moment)"),
+            doc="nodal forces (per node)"),
     Keyword("DLOAD", "step", (_AMP, _OP),
             Data("rows", (Col("surface", "name"), Col("load type", "name"), Col("value")), min_lines=1,
                  doc="`surface, P, value`"), doc="pressure (positive into the body)"),
     Keyword("FOUNDATION MOTION", "step", (_name("NAME", True), _AMP),
-            Data("rows", (Col("dx"), Col("dy")), min_lines=1, max_lines=1, doc="`dx, dy`"),
-            doc="rigid translation of a foundation reached at the step end"),
+            Data("rows", (Col("dx"), Col("dy"), Col("angle", optional=True)), min_lines=1, max_lines=1,
+                 doc="`dx, dy[, angle]`: translation of the reference point and rotation about it "
+                     "(radians, counter-clockwise; default 0)"),
+            doc="rigid motion of a foundation reached at the step end (totals from where the deck puts "
+                "it); on a foundation with a REF NODE, *BOUNDARY on its DOFs 1, 2, 6"),
+    Keyword("CHANGE CONTACT LAW", "step", (_name("SURFACE", True), _name("FOUNDATION", True),
+                                          _name("LAW", True)),
+            doc="the contact pair SURFACE->FOUNDATION uses the contact law LAW from this step on; its "
+                "state (p, tau, the slip lambda, the dissipation) carries over"),
+    Keyword("CONTACT STABILIZATION", "step",
+            (Param("FACTOR", float, 1e-4, gt=0.0,
+                   doc="damping coefficient as a fraction of KP times the step time"),
+             Param("TANGENTIAL", float, 1.0, bounds=(0.0, None),
+                   doc="tangential damping relative to the normal one"),
+             Param("RANGE", float, None, gt=0.0, unit="length",
+                   doc="open points within this distance of the foundation are damped (default one "
+                       "face length of the surface)"),
+             _name("SURFACE", doc="the pairs of this surface only (default every pair)"),
+             _name("FOUNDATION", doc="the pairs of this foundation only")),
+            doc="viscous damping of the open contact points near their foundation, fading over the "
+                "step: a body or tool held only by contact that is not closed yet (touching at a "
+                "point, driven by a force) runs without a singular matrix; its energy is in the log"),
     Keyword("OUTPUT", "step", (Param("FREQUENCY", int, 1, bounds=(1, None)),
                                Param("FIELDS", str, None,
                                      doc="fields of the VTK body files: U, S, LE, PE, PEEQ, RF, "

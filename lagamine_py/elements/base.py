@@ -37,9 +37,13 @@ class StepContext:
     nlgeom: bool = False
     t_old: float = 0.0              # total time at the start of the increment
     t_new: float = 0.0              # total time at its end
-    foundation_old: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (2,) translation at t_old
-    foundation_new: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (2,) translation at t_new
+    # name -> placement at t_old / t_new: (dx, dy) or (dx, dy, theta), the translation of the
+    # foundation's reference point and its rotation about it (lagamine_py.foundation)
+    foundation_old: dict[str, np.ndarray] = field(default_factory=dict)
+    foundation_new: dict[str, np.ndarray] = field(default_factory=dict)
     freeze_contact: dict[str, np.ndarray] | None = None   # contact group name -> (g,) statuses held
+    # contact group name -> (kn, kt, range) of *CONTACT STABILIZATION in this increment, or None
+    stabilisation: dict[str, tuple[float, float, float]] | None = None
 
 
 @dataclass
@@ -115,6 +119,12 @@ class ContactPoints:
     dvp: np.ndarray | None = None     # (g,) signed slip of the last increment (default 0)
     dissip: np.ndarray | None = None  # (g,) frictional dissipation per unit area D (default 0)
     E: float = 0.0                # energy the pair has dissipated: sum over increments of int dD dA
+    M: float = 0.0                # moment of the foundation's forces on the body about the tool's
+                                  # reference point (its current position; counter-clockwise)
+    stored: float = float("nan")  # energy stored in the contact springs (ContactLaw.stored_energy)
+    stabilisation: float = 0.0    # energy the contact stabilisation has dissipated since the start
+    friction: float = 0.0         # frictional dissipation since the start, in the trapezoidal form
+                                  # of the energy balance (E: the law's integral along increments)
 
     def __post_init__(self):
         g = len(np.asarray(self.p).ravel())

@@ -63,6 +63,42 @@ are those of the *reference* face; d is still measured from the current point P 
 reference normal) to the foundation, and dv = e_v0 . (dP - dc).  Its tangent is the
 constitutive part only (through dd/dP), still non-symmetric through the friction law.
 
+A rigid tool.  The foundation's placement is a translation ``c`` of its reference point ``X_R``
+and a rotation ``theta`` about it (:mod:`lagamine_py.foundation`): prescribed (``ctx``, from
+``*FOUNDATION MOTION``), or the DOFs of the tool's reference node (``tool_dofs``: u, v and, in
+plane strain, the rotation; the solver puts their values into ``ctx`` too).  A rotated chain is
+projected in its own frame: ``P' = X_R + R^T (P - x_R)``, ``e_u' = R^T e_u`` with ``x_R = X_R +
+c`` (d is invariant), the derivatives of d turned back by ``R``.  With respect to the tool::
+
+    dd/dc = -dd/dP,     dd/dtheta = (dd/dP) x (Q - x_R)     (z of the cross product)
+
+(turning the tool by ``dtheta`` about ``x_R`` moves the chain point at Q by ``dtheta J (Q - x_R)``,
+``J`` the quarter turn).  The tangential relative displacement is measured against the motion of
+the tool's material point at the start position of P, ``w = c_new - c_old + (R(dtheta) - I)
+(P_old - x_R,old)``: ``dv = e_v . (dP - w)`` (the translation ``dc`` alone without rotation), so a
+common rigid motion of body and tool slides nothing.
+
+With a reference node the group's rows and columns include the tool's DOFs: the tool's internal
+force is minus the sum of the forces on the faces, ``f_c = -sum_g F_g`` (``F_g`` the force of the
+point on its nodes, ``(p e_u + tau e_v) |t| W``), and its moment about ``x_R``, ``f_theta = -sum_g
+(P_g - x_R) x F_g``: the contact forces are self-equilibrated (no net force or moment), so a rigid
+motion of everything does no work, and at equilibrium the tool's reactions are the force and
+moment the tool exerts on the body.  The tangent is their exact derivative (the moment's arm moves
+with P and with the tool).
+
+Contact stabilisation (``ctx.stabilisation[name] = (kn, kt, range)``, set by the step controller
+from ``*CONTACT STABILIZATION``): on the points within ``range`` of the foundation (whose normal
+met it at the start and at the end of the increment), a viscous normal traction ``p_s = kn w_n
+(d_end - d_start)`` and a tangential one ``tau_s = kt w_t sum_k dv_k`` are added to p and tau in
+the forces, with their exact derivatives.  ``w_n`` is 1 in contact and fades to 0 at the range;
+``w_t`` acts on open points only, 0 at touching and at the range (:func:`_stab_weights`): both
+continuous, so a point that closes or opens sees no jump of its force (a jump makes Newton
+chatter).  They resist the approach and the sliding of a body or tool that nothing else holds
+yet; where the contact is closed the normal one only resists the change of the penetration
+(``kn << KP``).  ``ps`` and ``ts`` are the tractions of the last increment; their work,
+in the trapezoidal form of the energy balance, is kept per point in the state (``stab``, see
+:meth:`ContactGroup._increment_totals`).
+
 Chaining the law's derivatives.  The law (``lagamine_py.laws.base.ContactLaw``) returns, per
 sub-interval, derivatives named ``<out>_<in>`` with ``out`` in ``p, tau, lam`` and ``in`` in
 ``u`` (du, with d moving with it), ``v`` (dv), ``d`` (d_{k-1} with du fixed, i.e. an explicit
@@ -79,7 +115,7 @@ from .. import kernels
 from ..core.errors import ReturnMappingError
 from ..core.status import NONE, OPEN, SLIP, STICK
 from ..core.tensors import RIGHT as _R, right_normal as _right
-from ..foundation import Foundation
+from ..foundation import Foundation, Projection
 from ..laws.base import ContactLaw
 from .base import ContactPoints, Group, GroupResult, StepContext
 from .shapes import gauss_1d, line_shape
@@ -96,6 +132,8 @@ def _norm(t):
 
 _I2 = np.eye(2)
 _OUT = ("p", "tau", "lam")
+#: the group's own state arrays (besides the law's): see init_state and the module doc
+_OWN = ("dvp", "energy", "fdis", "ps", "ts", "stab")
 
 
 def _unit(t):
@@ -110,6 +148,37 @@ def _de_u_dt(t):
     e_u = _right(th)
     D = (_R[None] - e_u[:, :, None] * th[:, None, :]) / n[:, None, None]
     return e_u, D
+
+
+def _as_placement(v) -> tuple[np.ndarray, float]:
+    """``(c (2,), theta)`` of a placement given as (2,), (3,) or ``(c, theta)``."""
+    if isinstance(v, tuple) and len(v) == 2 and np.ndim(v[0]) == 1:
+        return np.asarray(v[0], float), float(v[1])
+    a = np.asarray(v, float).ravel()
+    return a[:2].copy(), (float(a[2]) if a.size > 2 else 0.0)
+
+
+def _stab_weights(d_end, d_start, rng):
+    """The stabilisation's weights and their derivatives in ``d_end``: normal ``w_n = 1`` in
+    contact (``d >= 0``), ``1 + d/range`` down to 0 at the range; tangential ``w_t = 4 s (1 - s)``
+    with ``s = -d/range`` on the open points within the range, 0 elsewhere.  Both are continuous
+    where the law is (at closing ``p`` and the re-contact ``tau`` start from 0), so a point
+    crossing ``d = 0`` sees no jump; 0 where the normal missed the foundation at either end."""
+    ok = (d_end > -rng) & (d_start > -0.5 * FAR)
+    closed = ok & (d_end >= 0.0)
+    gap = ok & (d_end < 0.0)
+    x = np.where(gap, -d_end / rng, 0.0)
+    wn = np.where(closed, 1.0, np.where(gap, 1.0 - x, 0.0))
+    dwn = np.where(gap, 1.0 / rng, 0.0)
+    wt = np.where(gap, 4.0 * x * (1.0 - x), 0.0)
+    dwt = np.where(gap, -4.0 * (1.0 - 2.0 * x) / rng, 0.0)
+    return wn, dwn, wt, dwt
+
+
+def _placement_key(place) -> np.ndarray:
+    """(3,) array of a placement (for the start cache and the kernel)."""
+    c, theta = _as_placement(place)
+    return np.array([c[0], c[1], theta])
 
 
 def _de_v_dt(t):
@@ -138,11 +207,14 @@ class ContactGroup(Group):
     gauss : 2 or 3 Gauss points per face.
     axisymmetric : forces per radian (times the radius r of P) instead of times thickness.
     thickness : plane-strain out-of-plane thickness.
+    tool_dofs : the global DOFs of the foundation's reference node (u, v[, rotation]), or None
+        for a foundation moved by ``ctx`` only; every face then couples to them (``dofs`` gains
+        their columns).
     """
 
     def __init__(self, name: str, face_nodes, elements, faces, coords0, foundation: Foundation,
                  foundation_name: str, law: ContactLaw, gauss: int = 3, axisymmetric: bool = False,
-                 thickness: float = 1.0):
+                 thickness: float = 1.0, tool_dofs=None):
         self.name = name
         self.face_nodes = np.asarray(face_nodes, int)
         nf, nfn = self.face_nodes.shape
@@ -162,6 +234,14 @@ class ContactGroup(Group):
         self.ng = nf * self.nq
         self.nd = 2 * nfn
         self.dofs = (2 * self.face_nodes[:, :, None] + np.arange(2)).reshape(nf, self.nd)
+        # the tool's DOFs (nt = 0, 2 or 3): columns nd.. of every face's rows and blocks
+        self.tool_dofs = np.zeros(0, np.int64) if tool_dofs is None else np.asarray(tool_dofs, np.int64)
+        self.nt = len(self.tool_dofs)
+        if self.nt not in (0, 2, 3):
+            raise ValueError(f"contact {name!r}: a tool has 2 or 3 DOFs, not {self.nt}")
+        self.nw = self.nd + self.nt
+        if self.nt:
+            self.dofs = np.concatenate([self.dofs, np.broadcast_to(self.tool_dofs, (nf, self.nt))], axis=1)
         # |d| below round-off of the coordinates is exact touching (a body meshed on the
         # foundation); relative to the coordinates' size, so a model in metres or nanometres
         # behaves as one in millimetres (an absolute 1e-12 swallowed the whole penetration of
@@ -186,6 +266,7 @@ class ContactGroup(Group):
         self._jac_tol = 1e-14 * size
         self._start_cache = None          # see _start_penetration
         self._kernel = False              # the fused kernel (use_kernels)
+        self._kernel_wanted = False
         self._kernel_static = None
 
     # ----------------------------------------------------------------- helpers
@@ -194,6 +275,7 @@ class ContactGroup(Group):
         law has a kernel vector -- COULOMB -- and the foundation a kernel, and numba imports),
         or the NumPy reference; the foundation projects through its kernel likewise."""
         self.foundation.use_kernels(on)
+        self._kernel_wanted = bool(on)
         self._kernel = (bool(on) and self.law.kernel_vector() is not None
                         and self.foundation.has_kernel() and kernels.module("contact") is not None)
 
@@ -204,18 +286,51 @@ class ContactGroup(Group):
         state = self.law.init_state(self.ng)
         state["dvp"] = np.zeros(self.ng)
         state["energy"] = np.zeros(self.ng)
+        for key in _OWN[2:]:          # fdis and the stabilisation (ps, ts, stab): module doc
+            state[key] = np.zeros(self.ng)
         return state
 
-    def _increment_totals(self, st, state, P, t, geo) -> dict[str, np.ndarray]:
-        """The group's own state after the law's: ``dvp = vp - vp_old`` and ``energy +=
+    def set_law(self, law: ContactLaw, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Use ``law`` from now on (``*CHANGE CONTACT LAW``); returns the committed ``state``
+        carried over: the law's :data:`~lagamine_py.laws.base.ContactLaw.STATE_KEYS` (p, tau,
+        the slip lambda and its measures, the dissipation, the status) and the group's own
+        arrays as they are, any other array of the new law from its ``init_state``.  The new
+        law integrates the next increment from them: a tau outside its cone returns to it
+        (slip), its hardening functions start at the lambda reached."""
+        self.law = law
+        self._kernel = (self._kernel_wanted and law.kernel_vector() is not None
+                        and self.foundation.has_kernel() and kernels.module("contact") is not None)
+        new = law.init_state(self.ng)
+        keep = set(ContactLaw.STATE_KEYS) | set(_OWN)
+        for key, value in state.items():
+            if key in keep or key not in new:
+                new[key] = np.array(value, copy=True)
+        return new
+
+    def _increment_totals(self, st, state, P, t, geo, d_start, d_end, dv) -> dict[str, np.ndarray]:
+        """The group's own state after the law's: ``dvp = vp - vp_old``; ``energy +=
         (dissip - dissip_old) dA``, ``dA`` the area the forces are integrated on at the end of
         the increment (so the sum over points and increments is the work of the friction
-        stresses along the slip, as the forces see it)."""
+        stresses along the slip, as the forces see it); and in the trapezoidal form of the
+        energy balance (:mod:`lagamine_py.solver.energy`), ``fdis += 1/2 (tau_old + tau) dvp
+        dA`` and ``stab += (1/2 (ps_old + ps) dd + 1/2 (ts_old + ts) dv) dA`` (``dd = d_end -
+        d_start``, ``dv`` the increment's tangential relative displacement, where the normal met
+        the foundation at both ends)."""
         wt, _ = self._weights(P, geo)
         dA = wt * _norm(t)
         st["dvp"] = np.asarray(st["vp"], float) - np.asarray(state["vp"], float)
         st["energy"] = (np.asarray(state["energy"], float)
                         + (np.asarray(st["dissip"], float) - np.asarray(state["dissip"], float)) * dA)
+        tau_old = np.asarray(state["tau"], float)
+        st["fdis"] = (np.asarray(state["fdis"], float)
+                      + 0.5 * (tau_old + np.asarray(st["tau"], float)) * st["dvp"] * dA)
+        both = (d_start > -0.5 * FAR) & (d_end > -0.5 * FAR)
+        dd = np.where(both, d_end - d_start, 0.0)
+        dv = np.where(both, dv, 0.0)
+        ps, ts = np.asarray(st["ps"], float), np.asarray(st["ts"], float)
+        st["stab"] = np.asarray(state["stab"], float) + (
+            0.5 * (np.asarray(state["ps"], float) + ps) * dd
+            + 0.5 * (np.asarray(state["ts"], float) + ts) * dv) * dA
         return st
 
     def _face_x(self, u) -> np.ndarray:
@@ -239,9 +354,58 @@ class ContactGroup(Group):
             out = out + N[None, :, a, None] * x[:, None, a, :]
         return out.reshape(self.ng, 2)
 
-    def _translation(self, ctx: StepContext, which: str) -> np.ndarray:
+    def _placement(self, ctx: StepContext, which: str) -> tuple[np.ndarray, float]:
+        """The foundation's translation ``c`` (2,) and rotation ``theta`` at the start
+        (``which`` "old") or end of the increment: ``ctx.foundation_old/new[name]``, (dx, dy)
+        or (dx, dy, theta)."""
         table = ctx.foundation_old if which == "old" else ctx.foundation_new
-        return np.asarray(table.get(self.foundation_name, np.zeros(2)), float)
+        return _as_placement(table.get(self.foundation_name, np.zeros(2)))
+
+    def _stabilisation(self, ctx: StepContext):
+        """``(kn, kt, range)`` of this pair in this increment, or None (see the module doc)."""
+        table = ctx.stabilisation
+        if not table or self.name not in table or table[self.name] is None:
+            return None
+        return table[self.name]
+
+    def _project(self, P, e_u, place) -> Projection:
+        """The foundation at ``place`` met by the lines (P, e_u), in the current frame: without
+        rotation :meth:`Foundation.project` as it is, else the lines turned into the chain's
+        frame and the result (Q, tangent, normal, the derivatives of d) turned back."""
+        c, theta = place
+        if theta == 0.0:
+            return self.foundation.project(P, e_u, c)
+        cs, sn = np.cos(theta), np.sin(theta)
+        X = self.foundation.centre
+        rx, ry = P[:, 0] - (X[0] + c[0]), P[:, 1] - (X[1] + c[1])
+        Pp = np.column_stack([X[0] + (cs * rx + sn * ry), X[1] + (-sn * rx + cs * ry)])
+        ep = np.column_stack([cs * e_u[:, 0] + sn * e_u[:, 1], -sn * e_u[:, 0] + cs * e_u[:, 1]])
+        pr = self.foundation.project(Pp, ep, None)
+
+        def back(v):                         # R v, row by row
+            v = np.asarray(v, float)
+            return np.column_stack([cs * v[:, 0] - sn * v[:, 1], sn * v[:, 0] + cs * v[:, 1]])
+
+        Q = np.column_stack([X[0] + c[0], X[1] + c[1]]) + back(np.asarray(pr.Q) - X)
+        return Projection(Q=Q, d=pr.d, arc=pr.arc, s=pr.s, tangent=back(pr.tangent),
+                          normal=back(pr.normal), found=pr.found, dd_dP=back(pr.dd_dP),
+                          dd_de=back(pr.dd_de))
+
+    def _tool_columns(self, pr, P, e_u, d, place) -> np.ndarray:
+        """D d / D (c, theta) (g, nt) of the tool's DOFs: ``-dd/dP`` and ``(dd/dP) x (Q - x_R)``
+        (0 where the line misses)."""
+        c, _ = place
+        a = np.asarray(pr.dd_dP, float)
+        out = np.zeros((self.ng, self.nt))
+        out[:, 0], out[:, 1] = -a[:, 0], -a[:, 1]
+        if self.nt == 3:
+            X = self.foundation.centre
+            dq = np.where(pr.found, d, 0.0)
+            qx = P[:, 0] - dq * e_u[:, 0] - (X[0] + c[0])
+            qy = P[:, 1] - dq * e_u[:, 1] - (X[1] + c[1])
+            out[:, 2] = a[:, 0] * qy - a[:, 1] * qx
+        out[~pr.found] = 0.0
+        return out
 
     def _frozen(self, ctx: StepContext):
         fc = ctx.freeze_contact
@@ -255,23 +419,26 @@ class ContactGroup(Group):
         P, t = self._at_points(x)
         return P, (t if geo else self._t0)
 
-    def _penetration(self, x, c, scale, geo):
-        """d (g,) and D d / D u_new (g, nd) (zeros when ``scale`` is 0) for positions x
-        (f, a, 2) that move with ``scale`` * u_new.  Points not found: far open (d = -FAR),
+    def _penetration(self, x, place, scale, geo):
+        """d (g,) and D d / D u_new (g, nw) (zeros when ``scale`` is 0) for positions x
+        (f, a, 2) that move with ``scale`` * u_new, the foundation at ``place`` (a translation
+        (2,), (dx, dy, theta), or ``(c, theta)``).  Points not found: far open (d = -FAR),
         derivative 0.  Round-off touching (|d| <= tolerance) is snapped to d = 0, which the law
         treats as closed with p = 0: a body meshed on the foundation has contact stiffness from
-        the first iteration, without a fake gap or spring."""
+        the first iteration, without a fake gap or spring.  The columns ``nd..`` (a tool's
+        DOFs) are the derivatives with respect to the tool's placement (moving with u_new)."""
         P, t = self._axes_t(x, geo)
-        return self._penetration_at(P, t, c, scale, geo)
+        return self._penetration_at(P, t, place, scale, geo)
 
-    def _penetration_at(self, P, t, c, scale, geo):
+    def _penetration_at(self, P, t, place, scale, geo):
         """:meth:`_penetration` from P (g, 2) and the axes' tangent t (g, 2)."""
+        place = _as_placement(place)
         e_u, de = _de_u_dt(t)
-        pr = self.foundation.project(P, e_u, c)
+        pr = self._project(P, e_u, place)
         d = np.where(pr.found, pr.d, -FAR)
         d = np.where(np.abs(d) <= self._touch_tol, 0.0, d)
         if scale == 0.0:
-            return d, np.zeros((self.ng, self.nd)), pr
+            return d, np.zeros((self.ng, self.nw)), pr
         Dd = self._kron(self._Ng, np.asarray(pr.dd_dP, float))
         if scale != 1.0:
             Dd *= scale
@@ -282,18 +449,22 @@ class ContactGroup(Group):
             Dd += Dd_t if scale == 1.0 else scale * Dd_t
         if not pr.found.all():
             Dd[~pr.found] = 0.0
+        if self.nt:
+            tool = self._tool_columns(pr, P, e_u, d, place)
+            Dd = np.concatenate([Dd, tool if scale == 1.0 else scale * tool], axis=1)
         return d, Dd, pr
 
-    def _start_penetration(self, xo, co, geo):
-        """d (g,) at the start of the increment (face positions xo, translation co).  It is the
-        same at every Newton iteration of an increment, so the last one is kept and reused
-        while the positions, the translation, NLGEOM and the foundation are bitwise the same."""
+    def _start_penetration(self, xo, place, geo):
+        """d (g,) at the start of the increment (face positions xo, placement ``place``).  It is
+        the same at every Newton iteration of an increment, so the last one is kept and reused
+        while the positions, the placement, NLGEOM and the foundation are bitwise the same."""
         c = self._start_cache
+        key = _placement_key(place)
         if (c is not None and c[0] == geo and c[1] is self.foundation
-                and np.array_equal(c[2], xo) and np.array_equal(c[3], co)):
+                and np.array_equal(c[2], xo) and np.array_equal(c[3], key)):
             return c[4].copy()
-        d, _, _ = self._penetration(xo, co, 0.0, geo)
-        self._start_cache = (geo, self.foundation, xo.copy(), np.array(co, copy=True), d.copy())
+        d, _, _ = self._penetration(xo, place, 0.0, geo)
+        self._start_cache = (geo, self.foundation, xo.copy(), key, d.copy())
         return d
 
     def rotation(self, x_old, x_new) -> np.ndarray:
@@ -320,29 +491,41 @@ class ContactGroup(Group):
         return int(min(max(int(np.ceil(angle / tol - 1e-9)), 1), cap))
 
     # ----------------------------------------------------------------- compute
-    def _integrate(self, u_new, u_old, state, ctx, tangent):
-        """Run the law over the sub-intervals; returns the end state, D p, D tau (g, nd), and
-        P, t (g, 2) of the end configuration (``_axes_t`` of u_new, reused by ``compute``)."""
+    def _integrate(self, u_new, u_old, state, ctx, tangent, stab=False):
+        """Run the law over the sub-intervals; returns the end state, D p, D tau (g, nw), P, t
+        (g, 2) of the end configuration (``_axes_t`` of u_new, reused by ``compute``) and
+        ``(d_start, d_end, D d_end, sum dv, D sum dv)`` (the last one None unless ``stab`` and
+        ``tangent``: the stabilisation's)."""
         xo, xn = self._face_x(u_old), self._face_x(u_new)
         dx = xn - xo
-        co, cn = self._translation(ctx, "old"), self._translation(ctx, "new")
+        (co, tho), (cn, thn) = self._placement(ctx, "old"), self._placement(ctx, "new")
         geo = bool(ctx.nlgeom)
         nsub = self.substeps_for(xo, xn, geo)
         theta = float(self.law.theta)
         frozen = self._frozen(ctx)
         frozen_open = None if frozen is None else (frozen == OPEN)
 
-        d_prev = self._start_penetration(xo, co, geo)          # start: fixed w.r.t. u_new
+        d_prev = self._start_penetration(xo, (co, tho), geo)   # start: fixed w.r.t. u_new
         d_start = d_prev
         # penetration at the end (the last sub-interval's); in between it moves linearly (see doc)
         P_end, t_end = self._axes_t(xn, geo)
-        d_end, Dd_end, _ = self._penetration_at(P_end, t_end, cn, 1.0 if tangent else 0.0, geo)
+        d_end, Dd_end, _ = self._penetration_at(P_end, t_end, (cn, thn), 1.0 if tangent else 0.0,
+                                                geo)
         st = state
         D = dict.fromkeys(_OUT)                # None: a derivative known to be zero
         Dd_prev = None
         dc = (cn - co) / nsub
         dP = self._interp(self.N, dx) / nsub
         rel = dP - dc
+        if self.nt == 3 or thn != tho:
+            # the tool turns: its material point at P_old moves by (R(dtheta) - I) (P_old - x_R)
+            X = self.foundation.centre
+            arm = self._interp(self.N, xo) - (X + co)
+            cs, sn = np.cos(thn - tho), np.sin(thn - tho)
+            q = np.column_stack([cs * arm[:, 0] - sn * arm[:, 1], sn * arm[:, 0] + cs * arm[:, 1]])
+            if thn != tho:
+                rel = rel - (q - arm) / nsub
+        dv_sum, Ddv_sum = 0.0, None
         for k in range(1, nsub + 1):
             a_k = k / nsub
             if nsub == 1:
@@ -356,6 +539,7 @@ class ContactGroup(Group):
             dv = e_v[:, 0] * rel[:, 0] + e_v[:, 1] * rel[:, 1]
             du = d_k - d_prev
             new, tan = self.law.update(st, d_k, du, dv, frozen=frozen)
+            dv_sum = dv_sum + dv
             if tangent:
                 Ddv = self._kron(self._Ng, e_v)
                 if nsub != 1:
@@ -365,6 +549,14 @@ class ContactGroup(Group):
                     turn = (self._kron(self._dNg, rel[:, 0, None] * dev[:, 0, :])
                             + self._kron(self._dNg, rel[:, 1, None] * dev[:, 1, :]))
                     Ddv += turn if a_th == 1.0 else a_th * turn
+                if self.nt:              # dv = e_v . (dP - w): w moves with the tool's DOFs
+                    tool = np.empty((self.ng, self.nt))
+                    tool[:, 0], tool[:, 1] = -e_v[:, 0] / nsub, -e_v[:, 1] / nsub
+                    if self.nt == 3:      # d w / d theta = J q
+                        tool[:, 2] = -(e_v[:, 1] * q[:, 0] - e_v[:, 0] * q[:, 1]) / nsub
+                    Ddv = np.concatenate([Ddv, tool], axis=1)
+                if stab:
+                    Ddv_sum = Ddv.copy() if Ddv_sum is None else Ddv_sum + Ddv
                 Ddu = Dd_k if Dd_prev is None else Dd_k - Dd_prev
                 D = self._chain(tan, D, Ddu, Dd_prev, Ddv, lam=k < nsub)
             if frozen_open is not None and frozen_open.any():
@@ -385,8 +577,8 @@ class ContactGroup(Group):
         st = {k: (v.copy() if v is state.get(k) else v) for k, v in st.items()}
         for key in ("p", "tau"):
             if tangent and D[key] is None:
-                D[key] = np.zeros((self.ng, self.nd))
-        return st, D, P_end, t_end
+                D[key] = np.zeros((self.ng, self.nw))
+        return st, D, P_end, t_end, (d_start, d_end, Dd_end, dv_sum, Ddv_sum)
 
     def _chain(self, tan, D, Ddu, Dd_old, Ddv, lam=True):
         """Forward-mode step: derivatives of (p, tau, lam) after a sub-interval.  Inputs and
@@ -424,7 +616,8 @@ class ContactGroup(Group):
         return self._Wg * P[:, 0], self._Wg[:, None] * self._AP[:, 0, :]
 
     def compute(self, u_new, u_old, state, ctx: StepContext, tangent: bool = True) -> GroupResult:
-        """Contact forces ``f`` (f, nd) and ``K = df/du_new`` (f, nd, nd); see the module doc.
+        """Contact forces ``f`` (f, nw) and ``K = df/du_new`` (f, nw, nw) (``nw = nd`` without a
+        tool's DOFs); see the module doc.
 
         With the COULOMB law, a :class:`~lagamine_py.foundation.Foundation` and numba, when
         switched on (:meth:`use_kernels`), the whole computation runs in one compiled loop over
@@ -433,11 +626,16 @@ class ContactGroup(Group):
         if self._kernel:
             return self._compute_fused(u_new, u_old, state, ctx, tangent)
         geo = bool(ctx.nlgeom)
+        stab = self._stabilisation(ctx)
         with np.errstate(invalid="ignore", divide="ignore"):
-            st, D, P, t = self._integrate(u_new, u_old, state, ctx, tangent)
-        st = self._increment_totals(st, state, P, t, geo)
+            st, D, P, t, extra = self._integrate(u_new, u_old, state, ctx, tangent, stab is not None)
         jac = _norm(t)
         p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
+        if stab is not None:
+            p, tau = self._stabilise(stab, st, extra, D, tangent)
+        else:
+            st["ps"], st["ts"] = np.zeros(self.ng), np.zeros(self.ng)
+        st = self._increment_totals(st, state, P, t, geo, extra[0], extra[1], extra[3])
         Rt = _right(t)
         vec = p[:, None] * Rt - tau[:, None] * t                      # (p e_u + tau e_v) |t|
         wt, Dwt = self._weights(P, geo)
@@ -450,24 +648,82 @@ class ContactGroup(Group):
             failure = f"contact {self.name}: non-finite contact stresses"
         else:
             failure = self._inadmissible(st, ctx)
+        if self.nt:
+            f = np.concatenate([f, self._tool_force(vec * wt[:, None], P, ctx)], axis=1)
         K = None
         if tangent:
             Dvec = Rt[:, :, None] * D["p"][:, None, :] - t[:, :, None] * D["tau"][:, None, :]
             if geo:                                   # the face (normal, length) moves
-                Dvec += p[:, None, None] * self._RAt - tau[:, None, None] * self._At
+                Dvec[:, :, :self.nd] += p[:, None, None] * self._RAt - tau[:, None, None] * self._At
+            if Dwt is not None and self.nt:
+                Dwt = np.concatenate([Dwt, np.zeros((self.ng, self.nt))], axis=1)
             Ng = self._Ng[:, :, None, None]
             Kg = Ng * Dvec[:, None] * wt[:, None, None, None]         # (g, a, i, J)
             if Dwt is not None:
                 Kg = Kg + Ng * vec[:, None, :, None] * Dwt[:, None, None, :]
-            K = Kg.reshape(self.nf, self.nq, self.nd, self.nd).sum(axis=1)
+            K = Kg.reshape(self.nf, self.nq, self.nd, self.nw).sum(axis=1)
+            if self.nt:
+                DF = Dvec * wt[:, None, None]
+                if Dwt is not None:
+                    DF = DF + vec[:, :, None] * Dwt[:, None, :]
+                K = np.concatenate([K, self._tool_tangent(vec * wt[:, None], DF, P, ctx)], axis=1)
         return GroupResult(f=f, K=K, state=st, failure=failure)
+
+    def _stabilise(self, stab, st, extra, D, tangent):
+        """p and tau with the stabilisation's tractions (see the module doc); D p, D tau updated
+        in place; ``st`` gets ``ps``, ``ts``."""
+        kn, kt, rng = stab
+        d_start, d_end, Dd_end, dv_sum, Ddv_sum = extra
+        wn, dwn, wt_, dwt = _stab_weights(d_end, d_start, rng)
+        dd = np.where(wn > 0.0, d_end - d_start, 0.0)
+        dv = np.where(wt_ > 0.0, dv_sum, 0.0)
+        ps, ts = kn * wn * dd, kt * wt_ * dv
+        st["ps"], st["ts"] = ps, ts
+        if tangent:
+            a = (kn * (wn + dd * dwn))[:, None]
+            b = (kt * dv * dwt)[:, None]
+            c = (kt * wt_)[:, None]
+            D["p"] = D["p"] + a * Dd_end
+            D["tau"] = D["tau"] + (c * Ddv_sum + b * Dd_end)
+        return np.asarray(st["p"], float) + ps, np.asarray(st["tau"], float) + ts
+
+    def _tool_force(self, F, P, ctx) -> np.ndarray:
+        """The tool's rows of ``f`` (f, nt): ``-sum F_g`` and ``-sum (P_g - x_R) x F_g`` per face,
+        ``F`` (g, 2) the points' forces."""
+        Ff = F.reshape(self.nf, self.nq, 2).sum(axis=1)
+        if self.nt == 2:
+            return -Ff
+        arm = P - self._tool_point(ctx)
+        m = (arm[:, 0] * F[:, 1] - arm[:, 1] * F[:, 0]).reshape(self.nf, self.nq).sum(axis=1)
+        return -np.column_stack([Ff, m])
+
+    def _tool_tangent(self, F, DF, P, ctx) -> np.ndarray:
+        """The tool's rows of ``K`` (f, nt, nw): the derivatives of :meth:`_tool_force`; ``DF``
+        (g, 2, nw) the derivatives of the points' forces."""
+        rows = -DF.reshape(self.nf, self.nq, 2, self.nw).sum(axis=1)
+        if self.nt == 2:
+            return rows
+        arm = P - self._tool_point(ctx)
+        Dm = arm[:, 0, None] * DF[:, 1, :] - arm[:, 1, None] * DF[:, 0, :]       # arm x DF
+        Dm[:, :self.nd] += (self._AP[:, 0, :] * F[:, 1, None]
+                            - self._AP[:, 1, :] * F[:, 0, None])                  # dP x F
+        Dm[:, self.nd] -= F[:, 1]                                                # -dx_R x F
+        Dm[:, self.nd + 1] += F[:, 0]
+        Dm = -Dm.reshape(self.nf, self.nq, self.nw).sum(axis=1)
+        return np.concatenate([rows, Dm[:, None, :]], axis=1)
+
+    def _tool_point(self, ctx) -> np.ndarray:
+        """The current position (2,) of the tool's reference point, ``X_R + c_new``."""
+        c, _ = self._placement(ctx, "new")
+        return self.foundation.centre + c
 
     def _compute_fused(self, u_new, u_old, state, ctx, tangent) -> GroupResult:
         """:meth:`compute` through the fused kernel (same sub-intervals, start penetration and
-        its cache, failures)."""
+        its cache, placement, tool rows, stabilisation, failures)."""
         kc = kernels.module("contact")
         geo = bool(ctx.nlgeom)
-        co, cn = self._translation(ctx, "old"), self._translation(ctx, "new")
+        po = _placement_key(self._placement(ctx, "old"))
+        pn = _placement_key(self._placement(ctx, "new"))
         cache = self._start_cache                 # see _start_penetration
         if cache is not None and cache[0] == geo and cache[1] is self.foundation:
             cache = cache[2:]
@@ -478,18 +734,20 @@ class ContactGroup(Group):
             self._kernel_static = (
                 c(self.N, float), c(self.dN, float), c(self.w, float), c(self._t0, float),
                 c(self._P0, float), c(self._At[:nq], float), c(self._RAt[:nq], float),
-                c(self._AP[:nq, 0, :], float), self.axisymmetric, self.thickness,
-                self._touch_tol, FAR, self._jac_tol)
+                c(self._AP[:nq, 0, :], float), c(self._AP[:nq, 1, :], float),
+                self.axisymmetric, self.thickness, self._touch_tol, FAR, self._jac_tol)
             self._face_nodes64 = c(self.face_nodes, np.int64)
-        xo, xn, reuse = kc.face_positions(u_old, u_new, self._face_nodes64, self._x0, cache, co)
+        xo, xn, reuse = kc.face_positions(u_old, u_new, self._face_nodes64, self._x0, cache, po)
         nsub = self.substeps_for(xo, xn, geo)
+        stab = self._stabilisation(ctx)
         st, f, K, outside, d_start, (snap, degenerate, nonfinite) = kc.contact_group(
             self._kernel_static, self.foundation.kernel_arrays(), self.law.kernel_vector(),
-            xo, xn, reuse, None if cache is None else cache[2], co, cn, nsub,
-            float(self.law.theta), geo, tangent, state, self._frozen(ctx))
+            xo, xn, reuse, None if cache is None else cache[2], po, pn, self.foundation.centre,
+            self.nt, stab, nsub, float(self.law.theta), geo, tangent, state, self._frozen(ctx))
         if not reuse:
-            self._start_cache = (geo, self.foundation, xo, np.array(co, float), d_start)
-        st = self._increment_totals(st, state, *self._axes_t(xn, geo), geo)
+            self._start_cache = (geo, self.foundation, xo, po, d_start)
+        d_end, dv = st.pop("d_end"), st.pop("dv")
+        st = self._increment_totals(st, state, *self._axes_t(xn, geo), geo, d_start, d_end, dv)
         if snap:
             raise ReturnMappingError(self.law.failure_message)
         failure = None
@@ -527,12 +785,17 @@ class ContactGroup(Group):
         or ``r ds`` (axisymmetry, per radian): ``P = int p dA``, ``T = int tau dA``, ``A = int
         dA`` over the points in contact (status STICK or SLIP), ``F`` (2,) the resultant force
         of the foundation on the body, ``-sum f`` (sum of the nodal contact forces), and ``E``
-        the energy dissipated by friction (the sum of the points' ``energy``)."""
+        the energy dissipated by friction (the sum of the points' ``energy``); ``M`` the moment of
+        the forces on the body about the tool's reference point, ``stored`` the energy in the
+        contact springs (:meth:`ContactLaw.stored_energy` over ``dA``; NaN when the law does not
+        say), ``friction`` the frictional dissipation and ``stabilisation`` the energy the
+        stabilisation has dissipated, both in the trapezoidal form of the energy balance.  ``F`` and ``M``
+        include the stabilisation's tractions: they are the tool's reactions."""
         geo = bool(ctx.nlgeom)
-        c = self._translation(ctx, "new")
+        c, theta = self._placement(ctx, "new")
         P, t = self._axes_t(self._face_x(u_new), geo)
         e_u, _ = _de_u_dt(t)
-        pr = self.foundation.project(P, e_u, c)
+        pr = self._project(P, e_u, (c, theta))
         wt, _ = self._weights(P, geo)
         dA = wt * np.linalg.norm(t, axis=-1)
         p = np.asarray(state["p"], float)
@@ -540,9 +803,25 @@ class ContactGroup(Group):
         status = np.where(pr.found, np.asarray(state["status"], np.int8), NONE).astype(np.int8)
         gap = np.where(pr.found, -pr.d, 0.0)
         if not pr.found.all():
-            gap[~pr.found] = self.foundation.distance(P[~pr.found], c)
-        vec = p[:, None] * _right(t) - tau[:, None] * t
+            # the distance is frame-free: measured to the chain turned back
+            X = self.foundation.centre
+            rel = P[~pr.found] - (X + c)
+            cs, sn = np.cos(theta), np.sin(theta)
+            back = X + np.column_stack([cs * rel[:, 0] + sn * rel[:, 1], -sn * rel[:, 0] + cs * rel[:, 1]])
+            gap[~pr.found] = self.foundation.distance(back if theta else P[~pr.found],
+                                                      None if theta else c)
+        # the forces include the stabilisation's tractions (as the solver's equilibrium)
+        pf = p + np.asarray(state.get("ps", 0.0), float)
+        tf = tau + np.asarray(state.get("ts", 0.0), float)
+        vec = pf[:, None] * _right(t) - tf[:, None] * t
         F = -np.einsum("gi,g->i", vec, wt)                         # sum_a N_a = 1 on a face
+        arm = P - (self.foundation.centre + c)
+        Fg = vec * wt[:, None]
+        M = -float(np.sum(arm[:, 0] * Fg[:, 1] - arm[:, 1] * Fg[:, 0]))
+        try:
+            stored = float(np.sum(np.asarray(self.law.stored_energy(state), float) * dA))
+        except NotImplementedError:
+            stored = float("nan")
         closed = (status == STICK) | (status == SLIP)
         return ContactPoints(
             name=self.name, element=np.repeat(self.ids, self.nq),
@@ -553,4 +832,6 @@ class ContactGroup(Group):
             A=float(np.sum(dA[closed])), F=F, x0=self._P0.copy(),
             vp=np.asarray(state["vp"], float), dvp=np.asarray(state["dvp"], float),
             dissip=np.asarray(state["dissip"], float),
-            E=float(np.sum(np.asarray(state["energy"], float))))
+            E=float(np.sum(np.asarray(state["energy"], float))), M=M, stored=stored,
+            stabilisation=float(np.sum(np.asarray(state.get("stab", 0.0), float))),
+            friction=float(np.sum(np.asarray(state.get("fdis", 0.0), float))))

@@ -165,6 +165,14 @@ class SolidElement(Element):
         state["stress"] = np.zeros((len(self.conn), self.nq, 4))
         return state
 
+    def energy(self, state_old: dict[str, np.ndarray], state_new: dict[str, np.ndarray]):
+        """``(stored, dissipated)``: the group's elastic energy in ``state_new`` and the energy
+        its law dissipated from ``state_old`` to ``state_new``, integrated over the reference
+        volume (:meth:`MaterialLaw.energy` times ``w0``; per radian in axisymmetry)."""
+        psi, dis = self.law.energy({k: state_old[k] for k in self._law_keys},
+                                   {k: state_new[k] for k in self._law_keys})
+        return float(np.sum(psi * self.w0)), float(np.sum(dis * self.w0))
+
     def gauss_coords(self, u: np.ndarray) -> np.ndarray:
         """(e, q, 2) positions of the Gauss points for nodal displacements ``u`` (n, 2)."""
         return np.einsum("qa,eai->eqi", self.N, self.coords0[self.conn] + u[self.conn])

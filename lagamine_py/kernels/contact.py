@@ -408,11 +408,22 @@ def _interp(Nq, x, e, i):
 
 
 @njit(**_JIT)
-def _penetration(geo, touch_tol, far, x, e, Nq, dNq, t0_0, t0_1, c, A, B, C, start_o, start_t,
-                 end_o, end_t, s_tol, cos_min):
+def _turned(th, X, c, px, py, ex, ey):
+    """The line (P, e_u) in the frame of a chain turned by ``th`` about ``X + c`` (``th`` != 0:
+    ``ContactGroup._project``): ``X + R^T (P - X - c)`` and ``R^T e_u``."""
+    cs, sn = math.cos(th), math.sin(th)
+    rx, ry = px - (X[0] + c[0]), py - (X[1] + c[1])
+    return (X[0] + (cs * rx + sn * ry), X[1] + (-sn * rx + cs * ry), cs * ex + sn * ey,
+            -sn * ex + cs * ey)
+
+
+@njit(**_JIT)
+def _penetration(geo, touch_tol, far, x, e, Nq, dNq, t0_0, t0_1, c, th, X, czero, A, B, C,
+                 start_o, start_t, end_o, end_t, s_tol, cos_min):
     """``ContactGroup._penetration`` of one point without derivatives: d at face positions
-    ``x`` (f, a, 2) of face ``e`` and translation ``c``; ``t0_*`` the reference tangent (axes
-    without NLGEOM).  Returns ``d`` (-far where the line misses, 0 within ``touch_tol``)."""
+    ``x`` (f, a, 2) of face ``e`` and placement ``c``, ``th`` (reference point ``X``); ``t0_*``
+    the reference tangent (axes without NLGEOM).  Returns ``d`` (-far where the line misses, 0
+    within ``touch_tol``)."""
     P_0, P_1 = _interp(Nq, x, e, 0), _interp(Nq, x, e, 1)
     if geo:
         t_0, t_1 = _interp(dNq, x, e, 0), _interp(dNq, x, e, 1)
@@ -421,9 +432,13 @@ def _penetration(geo, touch_tol, far, x, e, Nq, dNq, t0_0, t0_1, c, A, B, C, sta
     n = math.sqrt(t_0 * t_0 + t_1 * t_1)
     sn = n if n > 0 else 1.0
     eu0, eu1 = t_1 / sn, -(t_0 / sn)
+    cp = c
+    if th != 0.0:
+        P_0, P_1, eu0, eu1 = _turned(th, X, c, P_0, P_1, eu0, eu1)
+        cp = czero
     w0, w1 = -eu1, eu0
     ok, bd, _, _, _, _, _, _ = _project_one(
-        A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, c, P_0, P_1, eu0, eu1,
+        A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, cp, P_0, P_1, eu0, eu1,
         w0 * start_t[0] + w1 * start_t[1], w0 * end_t[0] + w1 * end_t[1])
     d = bd if ok else -far
     return 0.0 if abs(d) <= touch_tol else d
@@ -431,34 +446,47 @@ def _penetration(geo, touch_tol, far, x, e, Nq, dNq, t0_0, t0_1, c, A, B, C, sta
 
 @njit(**_JIT)
 def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, xo, xn, N, dN, W,
-             t0, P0, At, RAt, AP0, start_needed, d_start, co, cn, A, B, C, start_o, start_t,
-             end_o, end_t, s_tol, cos_min, lv, p_old, tau_old, lam_old, slip_old, vp_old,
-             dissip_old, status_old, hold, has_hold, p_new, tau_new, lam_new, slip_new, vp_new,
-             dissip_new, status_new, outside, f, K):
+             t0, P0, At, RAt, AP0, AP1, start_needed, d_start, co, cn, tho, thn, X, nt, stab, A, B,
+             C, start_o, start_t, end_o, end_t, s_tol, cos_min, lv, p_old, tau_old, lam_old,
+             slip_old, vp_old, dissip_old, status_old, hold, has_hold, p_new, tau_new, lam_new,
+             slip_new, vp_new, dissip_new, status_new, ps_new, ts_new, d_out, dv_out, outside, f,
+             K):
     """``ContactGroup.compute`` (``_integrate`` and the forces/tangent) point by point for the
     COULOMB law against a :class:`~lagamine_py.foundation.Foundation`: the same formulas in
     the same order; derivatives known to be zero are skipped as there.  Arrays: ``xo``, ``xn``
     (f, a, 2) face nodes at the start and end; ``N``, ``dN`` (q, a); ``W`` (q,); ``t0``, ``P0``
-    (g, 2) reference face; ``At``, ``RAt`` (q, 2, nd) and ``AP0`` (q, nd) the element's
+    (g, 2) reference face; ``At``, ``RAt`` (q, 2, nd) and ``AP0``, ``AP1`` (q, nd) the element's
     constant derivative blocks; ``d_start`` (g,) the start penetration, computed here (and
-    written) when ``start_needed``.  Writes the new state, ``outside`` (g,)
-    (``Coulomb.outside_cone``), ``f`` (f, nd) and ``K`` (f, nd, nd) when ``tangent``; returns
+    written) when ``start_needed``.  The foundation's placement: translations ``co``, ``cn``
+    (2,) and rotations ``tho``, ``thn`` of its reference point ``X`` (2,); ``nt`` the tool's
+    DOFs (0, 2 or 3: columns and rows ``nd..`` of ``f`` and ``K``); ``stab`` (3,) the
+    stabilisation ``(kn, kt, range)`` (``kn < 0``: none).  Writes the new state, the
+    stabilisation's ``ps_new``, ``ts_new``, ``d_end`` and the sum of the sub-intervals' ``dv``
+    (``d_out``, ``dv_out``: for the energy), ``outside`` (g,)
+    (``Coulomb.outside_cone``), ``f`` (f, nw) and ``K`` (f, nw, nw) when ``tangent``; returns
     ``(snap-backs, degenerate faces (|t| <= jac_tol), non-finite f, p or tau)`` as counts."""
     nf, na = xo.shape[0], xo.shape[1]
     nq = N.shape[0]
     nd = 2 * na
+    nw = nd + nt
     kt = lv[_KT]
-    Dd_end = np.zeros(nd)
-    Dd_k = np.zeros(nd)
-    Dd_prev = np.zeros(nd)
-    Ddu = np.zeros(nd)
-    Ddv = np.zeros(nd)
-    Dp, Dtau, Dlam = np.zeros(nd), np.zeros(nd), np.zeros(nd)
-    nDp, nDtau, nDlam = np.zeros(nd), np.zeros(nd), np.zeros(nd)
-    Dvec = np.zeros((2, nd))
+    has_stab = stab[0] >= 0.0
+    Dd_end = np.zeros(nw)
+    Dd_k = np.zeros(nw)
+    Dd_prev = np.zeros(nw)
+    Ddu = np.zeros(nw)
+    Ddv = np.zeros(nw)
+    Ddv_sum = np.zeros(nw)
+    Dp, Dtau, Dlam = np.zeros(nw), np.zeros(nw), np.zeros(nw)
+    nDp, nDtau, nDlam = np.zeros(nw), np.zeros(nw), np.zeros(nw)
+    Dvec = np.zeros((2, nw))
+    czero = np.zeros(2)
     tl = np.empty(14)
     dx = xn - xo
     dc0, dc1 = (cn[0] - co[0]) / nsub, (cn[1] - co[1]) / nsub
+    turning = nt == 3 or thn != tho
+    csd, snd = math.cos(thn - tho), math.sin(thn - tho)
+    xr0, xr1 = X[0] + cn[0], X[1] + cn[1]                  # the tool's point now
     bad = degenerate = nonfinite = 0
     for e in range(nf):
         for q in range(nq):
@@ -466,8 +494,8 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
             Nq, dNq = N[q], dN[q]
             if start_needed:
                 d_start[g] = _penetration(geo, touch_tol, far, xo, e, Nq, dNq, t0[g, 0],
-                                          t0[g, 1], co, A, B, C, start_o, start_t, end_o, end_t,
-                                          s_tol, cos_min)
+                                          t0[g, 1], co, tho, X, czero, A, B, C, start_o, start_t,
+                                          end_o, end_t, s_tol, cos_min)
             # end configuration: P, the axes' tangent, the penetration and its derivative
             P_0, P_1 = _interp(Nq, xn, e, 0), _interp(Nq, xn, e, 1)
             if geo:
@@ -481,9 +509,13 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
             # d e_u / d t = (R - e_u th^T) / |t|, R = [[0, 1], [-1, 0]]
             de00, de01 = (0.0 - eu0 * th0) / n, (1.0 - eu0 * th1) / n
             de10, de11 = (-1.0 - eu1 * th0) / n, (0.0 - eu1 * th1) / n
-            w0, w1 = -eu1, eu0
+            pp0, pp1, ep0, ep1, cp = P_0, P_1, eu0, eu1, cn
+            if thn != 0.0:                         # the turned chain: project in its frame
+                pp0, pp1, ep0, ep1 = _turned(thn, X, cn, P_0, P_1, eu0, eu1)
+                cp = czero
+            w0, w1 = -ep1, ep0
             ok, bd, _, _, _, _, T0, T1 = _project_one(
-                A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, cn, P_0, P_1, eu0, eu1,
+                A, B, C, start_o, start_t, end_o, end_t, s_tol, cos_min, cp, pp0, pp1, ep0, ep1,
                 w0 * start_t[0] + w1 * start_t[1], w0 * end_t[0] + w1 * end_t[1])
             d_end = bd if ok else -far
             if abs(d_end) <= touch_tol:
@@ -491,9 +523,13 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
             if tangent:
                 if ok:
                     mb0, mb1 = -T1, T0
-                    me = mb0 * eu0 + mb1 * eu1
+                    me = mb0 * ep0 + mb1 * ep1
                     dP0, dP1 = mb0 / me, mb1 / me
                     dE0, dE1 = -bd * dP0, -bd * dP1
+                    if thn != 0.0:                 # back to the current frame: R v
+                        cs, sn_ = math.cos(thn), math.sin(thn)
+                        dP0, dP1 = cs * dP0 - sn_ * dP1, sn_ * dP0 + cs * dP1
+                        dE0, dE1 = cs * dE0 - sn_ * dE1, sn_ * dE0 + cs * dE1
                     dt0 = dE0 * de00 + dE1 * de10
                     dt1 = dE0 * de01 + dE1 * de11
                     for a in range(na):
@@ -502,11 +538,25 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
                         if geo:
                             Dd_end[2 * a] += dNq[a] * dt0
                             Dd_end[2 * a + 1] += dNq[a] * dt1
+                    if nt:                         # the tool's placement
+                        Dd_end[nd], Dd_end[nd + 1] = -dP0, -dP1
+                        if nt == 3:
+                            qx = P_0 - d_end * eu0 - (X[0] + cn[0])
+                            qy = P_1 - d_end * eu1 - (X[1] + cn[1])
+                            Dd_end[nd + 2] = dP0 * qy - dP1 * qx
                 else:
                     Dd_end[:] = 0.0
-            # relative displacement per sub-interval
+            # relative displacement per sub-interval (minus the tool's material point's motion)
             rel0 = _interp(Nq, dx, e, 0) / nsub - dc0
             rel1 = _interp(Nq, dx, e, 1) / nsub - dc1
+            qa0 = qa1 = 0.0
+            if turning:
+                arm0 = _interp(Nq, xo, e, 0) - (X[0] + co[0])
+                arm1 = _interp(Nq, xo, e, 1) - (X[1] + co[1])
+                qa0, qa1 = csd * arm0 - snd * arm1, snd * arm0 + csd * arm1
+                if thn != tho:
+                    rel0 = rel0 - (qa0 - arm0) / nsub
+                    rel1 = rel1 - (qa1 - arm1) / nsub
             # the sub-intervals (ContactGroup._integrate)
             h_g = hold[g] if has_hold else -1
             sp, stau, slam = p_old[g], tau_old[g], lam_old[g]
@@ -514,6 +564,7 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
             d_prev = d_start[g]
             have_prev = False
             zp = ztau = zlam = True
+            dv_sum = 0.0
             for k in range(1, nsub + 1):
                 a_k = k / nsub
                 if nsub == 1:
@@ -521,7 +572,7 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
                     Dd_k[:] = Dd_end
                 else:
                     d_k = d_start[g] + a_k * (d_end - d_start[g])
-                    for J in range(nd):
+                    for J in range(nw):
                         Dd_k[J] = a_k * Dd_end[J]
                 a_th = (k - 1 + theta) / nsub
                 if geo:
@@ -544,6 +595,7 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
                 np_, ntau, nlam, nslip, nvp, ndis, nstat, snap = _coulomb_point(
                     lv, sp, stau, slam, sslip, svp, sdis, sstat, d_k, du, dv, h_g, tl)
                 bad += snap
+                dv_sum = dv_sum + dv
                 if tangent:
                     for a in range(na):
                         Ddv[2 * a] = Nq[a] * ev0
@@ -558,11 +610,18 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
                                 dev1i = dv10 if i == 0 else dv11
                                 turn = dNq[a] * (rel0 * dev0i) + dNq[a] * (rel1 * dev1i)
                                 Ddv[2 * a + i] += turn if a_th == 1.0 else a_th * turn
-                    for J in range(nd):
+                    if nt:
+                        Ddv[nd], Ddv[nd + 1] = -ev0 / nsub, -ev1 / nsub
+                        if nt == 3:
+                            Ddv[nd + 2] = -(ev1 * qa0 - ev0 * qa1) / nsub
+                    if has_stab:
+                        for J in range(nw):
+                            Ddv_sum[J] = Ddv[J] if k == 1 else Ddv_sum[J] + Ddv[J]
+                    for J in range(nw):
                         Ddu[J] = Dd_k[J] - Dd_prev[J] if have_prev else Dd_k[J]
                     lam_needed = k < nsub
                     # chain (ContactGroup._chain): inputs u, v, d, p, tau, lam in this order
-                    for J in range(nd):
+                    for J in range(nw):
                         acc = tl[11] * Ddu[J]                              # p_u
                         if have_prev:
                             acc += tl[10] * Dd_prev[J]                     # p_d
@@ -615,18 +674,44 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
             radius = b1 + phi1 * sp
             abs_tau = abs(stau)
             outside[g] = abs_tau - radius > 1e-7 * (radius + abs_tau + sp) + 1e-12 * kt
-            # forces and tangent (ContactGroup.compute)
-            degenerate += n <= jac_tol
-            nonfinite += not (math.isfinite(sp) and math.isfinite(stau))
-            Rt0, Rt1 = t_1, -t_0
-            vec0 = sp * Rt0 - stau * t_0
-            vec1 = sp * Rt1 - stau * t_1
             if not ax:
                 wt = W[q] * thickness
             elif geo:
                 wt = W[q] * P_0
             else:
                 wt = W[q] * P0[g, 0]
+            # the stabilisation (ContactGroup._stabilise)
+            ps = ts = 0.0
+            if has_stab:
+                rng = stab[2]
+                ok = d_end > -rng and d_start[g] > -0.5 * far
+                wn = dwn = wts = dwt = 0.0           # ContactGroup._stab_weights
+                if ok and d_end >= 0.0:
+                    wn = 1.0
+                elif ok:
+                    x = -d_end / rng
+                    wn, dwn = 1.0 - x, 1.0 / rng
+                    wts, dwt = 4.0 * x * (1.0 - x), -4.0 * (1.0 - 2.0 * x) / rng
+                dd = d_end - d_start[g] if wn > 0.0 else 0.0
+                dvs = dv_sum if wts > 0.0 else 0.0
+                ps, ts = stab[0] * wn * dd, stab[1] * wts * dvs
+                if tangent and ok:
+                    sa = stab[0] * (wn + dd * dwn)
+                    sb = stab[1] * dvs * dwt
+                    sc = stab[1] * wts
+                    for J in range(nw):
+                        Dp[J] = Dp[J] + sa * Dd_end[J]
+                        Dtau[J] = Dtau[J] + (sc * Ddv_sum[J] + sb * Dd_end[J])
+            ps_new[g], ts_new[g] = ps, ts
+            d_out[g], dv_out[g] = d_end, dv_sum
+            sp = sp + ps
+            stau = stau + ts
+            # forces and tangent (ContactGroup.compute)
+            degenerate += n <= jac_tol
+            nonfinite += not (math.isfinite(sp) and math.isfinite(stau))
+            Rt0, Rt1 = t_1, -t_0
+            vec0 = sp * Rt0 - stau * t_0
+            vec1 = sp * Rt1 - stau * t_1
             for a in range(na):
                 fa0 = Nq[a] * vec0 * wt
                 fa1 = Nq[a] * vec1 * wt
@@ -635,26 +720,68 @@ def _contact(geo, tangent, ax, nsub, theta, thickness, touch_tol, far, jac_tol, 
                 else:
                     f[e, 2 * a] += fa0
                     f[e, 2 * a + 1] += fa1
+            F0, F1 = vec0 * wt, vec1 * wt
+            arm0, arm1 = P_0 - xr0, P_1 - xr1
+            if nt:                                 # the tool's rows, negated after the face
+                mq = arm0 * F1 - arm1 * F0
+                if q == 0:
+                    f[e, nd], f[e, nd + 1] = F0, F1
+                    if nt == 3:
+                        f[e, nd + 2] = mq
+                else:
+                    f[e, nd] += F0
+                    f[e, nd + 1] += F1
+                    if nt == 3:
+                        f[e, nd + 2] += mq
             if tangent:
-                for J in range(nd):
+                for J in range(nw):
                     Dvec[0, J] = Rt0 * Dp[J] - t_0 * Dtau[J]
                     Dvec[1, J] = Rt1 * Dp[J] - t_1 * Dtau[J]
-                    if geo:
+                    if geo and J < nd:
                         Dvec[0, J] += sp * RAt[q, 0, J] - stau * At[q, 0, J]
                         Dvec[1, J] += sp * RAt[q, 1, J] - stau * At[q, 1, J]
                 for a in range(na):
                     for i in range(2):
                         veci = vec0 if i == 0 else vec1
-                        for J in range(nd):
+                        for J in range(nw):
                             kg = Nq[a] * Dvec[i, J] * wt
-                            if ax and geo:
+                            if ax and geo and J < nd:
                                 kg = kg + Nq[a] * veci * (W[q] * AP0[q, J])
                             if q == 0:
                                 K[e, 2 * a + i, J] = kg
                             else:
                                 K[e, 2 * a + i, J] += kg
+                if nt:
+                    for J in range(nw):
+                        df0 = Dvec[0, J] * wt
+                        df1 = Dvec[1, J] * wt
+                        if ax and geo and J < nd:
+                            df0 = df0 + vec0 * (W[q] * AP0[q, J])
+                            df1 = df1 + vec1 * (W[q] * AP0[q, J])
+                        if q == 0:
+                            K[e, nd, J], K[e, nd + 1, J] = df0, df1
+                        else:
+                            K[e, nd, J] += df0
+                            K[e, nd + 1, J] += df1
+                        if nt == 3:
+                            dm = arm0 * df1 - arm1 * df0
+                            if J < nd:
+                                dm += AP0[q, J] * F1 - AP1[q, J] * F0
+                            elif J == nd:
+                                dm -= F1
+                            elif J == nd + 1:
+                                dm += F0
+                            if q == 0:
+                                K[e, nd + 2, J] = dm
+                            else:
+                                K[e, nd + 2, J] += dm
         for J in range(nd):
             nonfinite += not math.isfinite(f[e, J])
+        for r in range(nd, nw):                    # the tool's rows: minus the sums
+            f[e, r] = -f[e, r]
+            if tangent:
+                for J in range(nw):
+                    K[e, r, J] = -K[e, r, J]
     return bad, degenerate, nonfinite
 
 
@@ -663,7 +790,10 @@ def _faces(u_old, u_new, face_nodes, x0, xo, xn, cached, cxo, cco, co):
     """Face node positions ``xo``, ``xn`` (f, a, 2) = ``x0 + u[face_nodes]`` (as
     ``ContactGroup._face_x``); returns whether the cached start configuration ``cxo``, ``cco``
     is the same (``cached`` False: there is none), compared with ``==`` as np.array_equal."""
-    same = cached and cco[0] == co[0] and cco[1] == co[1]
+    same = cached and cco.shape[0] == co.shape[0]
+    for i in range(co.shape[0]):
+        if same and not cco[i] == co[i]:
+            same = False
     for e in range(face_nodes.shape[0]):
         for a in range(face_nodes.shape[1]):
             node = face_nodes[e, a]
@@ -689,40 +819,48 @@ def face_positions(u_old, u_new, face_nodes, x0, cache, co):
     return xo, xn, same
 
 
-def contact_group(element, chain, law_vector, xo, xn, reuse, d_start, co, cn, nsub, theta, geo,
-                  tangent, state, frozen):
+def contact_group(element, chain, law_vector, xo, xn, reuse, d_start, place_o, place_n,
+                  centre, nt, stab, nsub, theta, geo, tangent, state, frozen):
     """:func:`_contact` for one contact group: ``(new_state, f, K, outside, d_start, flags)``.
 
-    ``element``: the group's constant arrays ``(N, dN, W, t0, P0, At, RAt, AP0, axisymmetric,
-    thickness, touch_tol, far, jac_tol)`` (see ``ContactGroup``); ``chain``: the foundation's
-    ``kernel_arrays()``; ``law_vector``: ``Coulomb.kernel_vector()``; ``xo``, ``xn``, ``reuse``
-    from :func:`face_positions`; ``d_start`` (g,) the start penetration when ``reuse`` (else
-    computed here and returned); ``co``, ``cn`` the foundation translations; ``nsub`` the
-    sub-intervals.  ``flags``: counts of (snap-backs, degenerate faces, non-finite values)."""
+    ``element``: the group's constant arrays ``(N, dN, W, t0, P0, At, RAt, AP0, AP1,
+    axisymmetric, thickness, touch_tol, far, jac_tol)`` (see ``ContactGroup``); ``chain``: the
+    foundation's ``kernel_arrays()``; ``law_vector``: ``Coulomb.kernel_vector()``; ``xo``,
+    ``xn``, ``reuse`` from :func:`face_positions`; ``d_start`` (g,) the start penetration when
+    ``reuse`` (else computed here and returned); ``place_o``, ``place_n`` the foundation's
+    placements (dx, dy, theta) at the start and end, ``centre`` its reference point; ``nt`` the
+    tool's DOFs (0, 2, 3); ``stab`` ``(kn, kt, range)`` or None; ``nsub`` the sub-intervals.
+    The new state holds ``ps``, ``ts`` (the stabilisation), ``d_end`` and ``dv`` (the
+    increment's penetration at its end and tangential relative displacement); ``flags``: counts of
+    (snap-backs, degenerate faces, non-finite values)."""
     calls["contact"] += 1
-    N, dN, W, t0, P0, At, RAt, AP0, axisym, thickness, touch_tol, far, jac_tol = element
+    N, dN, W, t0, P0, At, RAt, AP0, AP1, axisym, thickness, touch_tol, far, jac_tol = element
     A, B, C, so, st, eo, et, s_tol, cos_min = chain
     c = _arr
     nf, na = xo.shape[0], xo.shape[1]
     nd, ng = 2 * na, nf * N.shape[0]
+    nw = nd + int(nt)
     if not reuse:
         d_start = np.empty(ng)
-    out = np.empty((6, ng))
+    out = np.empty((10, ng))
     status = np.empty(ng, np.int8)
     outside = np.empty(ng, np.bool_)
-    f = np.empty((nf, nd))
-    K = np.empty((nf, nd, nd)) if tangent else np.empty((0, nd, nd))
+    f = np.empty((nf, nw))
+    K = np.empty((nf, nw, nw)) if tangent else np.empty((0, nw, nw))
     hold = _NO_HOLD if frozen is None else c(np.broadcast_to(frozen, (ng,)), np.int64)
+    po, pn = c(place_o, float), c(place_n, float)
+    sv = np.array([-1.0, 0.0, 0.0]) if stab is None else c(stab, float)
     flags = _contact(bool(geo), bool(tangent), bool(axisym), int(nsub), float(theta),
                      float(thickness), touch_tol, far, jac_tol, xo, xn, N, dN, W, t0, P0, At,
-                     RAt, AP0, not reuse, d_start, c(co, float), c(cn, float), A, B, C, so, st,
+                     RAt, AP0, AP1, not reuse, d_start, po[:2].copy(), pn[:2].copy(),
+                     float(po[2]), float(pn[2]), c(centre, float), int(nt), sv, A, B, C, so, st,
                      eo, et, s_tol, cos_min, law_vector, c(state["p"], float),
                      c(state["tau"], float), c(state["lam"], float), c(state["slip"], float),
                      c(state["vp"], float), c(state["dissip"], float), c(state["status"], np.int8),
                      hold, frozen is not None, out[0], out[1], out[2], out[3], out[4], out[5],
-                     status, outside, f, K)
+                     status, out[6], out[7], out[8], out[9], outside, f, K)
     new_state = dict(p=out[0], tau=out[1], lam=out[2], slip=out[3], vp=out[4], dissip=out[5],
-                     status=status)
+                     status=status, ps=out[6], ts=out[7], d_end=out[8], dv=out[9])
     for k, v in state.items():                # entries the law does not own: copied through
         if k not in new_state:
             new_state[k] = np.array(v, copy=True)

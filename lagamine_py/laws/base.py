@@ -59,6 +59,21 @@ class MaterialLaw(Parametrized):
         """
         raise NotImplementedError
 
+    def energy(self, state_old: dict[str, np.ndarray], state_new: dict[str, np.ndarray]):
+        """The energy of an increment from the committed state ``state_old`` to ``state_new``
+        (what :meth:`update` returned), per unit (reference) volume, for the energy balance
+        (``*CHECK, TYPE=ENERGY``, :mod:`lagamine_py.solver.energy`).
+
+        Returns ``(stored, dissipated)``, each of the points' shape: the elastic energy of
+        ``state_new`` and the energy dissipated over the increment.  Their sum over a path
+        must match the work ``sum 1/2 (s_n + s_n+1) . (e_n+1 - e_n)`` of the stresses along the
+        total strain increments (the trapezoidal rule, which the solver's balance uses): the
+        contract checks compare them along a loading-unloading path.  The default refuses: a law
+        that does not say cannot be checked."""
+        raise NotImplementedError(f"material law {type(self).__name__} does not report its energy: "
+                                  f"it has no energy() (the stored and dissipated energy an "
+                                  f"energy balance needs)")
+
     def elastic_moduli(self) -> tuple[float, float]:
         """(E, nu) of the elastic part, the law's initial stiffness (``D`` of a zero trial strain
         from :meth:`init_state` is Hooke's with them: the contract check compares): penalty
@@ -143,6 +158,15 @@ class ContactLaw(Parametrized):
     def update(self, state, d, du, dv, frozen=None):
         """Integrate one sub-interval of every point; see the class docstring."""
         raise NotImplementedError
+
+    def stored_energy(self, state) -> np.ndarray:
+        """(g,) the energy per unit area stored in the points' contact springs in ``state`` (the
+        penalty energy of the energy balance, ``*CHECK, TYPE=ENERGY``); with the frictional
+        dissipation ``dissip`` it accounts for the work of the contact stresses along the
+        relative displacements.  The default refuses: a law that does not say cannot be
+        checked."""
+        raise NotImplementedError(f"contact law {type(self).__name__} does not report its stored "
+                                  f"(penalty) energy: it has no stored_energy()")
 
     def inadmissible(self, state) -> np.ndarray:
         """(g,) bool: points whose state the law itself cannot accept (beyond round-off outside

@@ -190,6 +190,14 @@ class Coulomb(ContactLaw):
         friction = any(v != 0.0 for v in (self.phi, self.b, self.hphi, self.hb))
         return {"KP": (self.kp, True), "KT": (self.kt, friction)}
 
+    def stored_energy(self, state) -> np.ndarray:
+        """``p^2 / (2 KP) + tau^2 / (2 KT)`` per unit area: the elastic energy of the normal and
+        tangential penalty springs (``p = KP d``, ``tau`` = KT times the elastic part of the
+        tangential displacement); a frictionless law (``tau = 0``) stores none tangentially."""
+        p = np.asarray(state["p"], float)
+        tau = np.asarray(state["tau"], float)
+        return 0.5 * p * p / self.kp + 0.5 * tau * tau / self.kt
+
     def update(self, state, d, du, dv, frozen=None):
         """Integrate one sub-interval for all points (see :class:`ContactLaw`).
 

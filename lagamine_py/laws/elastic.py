@@ -42,6 +42,11 @@ class LinearElastic(MaterialLaw):
         new_state["peeq"] = np.array(state["peeq"], float, copy=True)
         return stress, D, new_state, np.ones(eps.shape[:-1], bool)
 
+    def energy(self, state_old, state_new):
+        """``1/2 eps_e . D eps_e`` stored, nothing dissipated."""
+        eps = np.asarray(state_new["eps_e"], float)
+        return 0.5 * np.einsum("...s,...s->...", eps @ self.D.T, eps), np.zeros(eps.shape[:-1])
+
     def kernel_parameters(self):
         if type(self) is not LinearElastic:      # a subclass may change anything: NumPy
             return None

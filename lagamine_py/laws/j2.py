@@ -104,6 +104,27 @@ class J2Plasticity(MaterialLaw):
         return stress.reshape(shape + (4,)), D.reshape(shape + (4, 4)), new_state, ok.reshape(shape)
 
 
+    def energy(self, state_old, state_new):
+        """Stored ``psi = 1/2 eps_e . D eps_e`` of ``state_new``; dissipated over the increment
+        ``1/2 (sig_n + sig_n+1) . deps_p`` with ``sig = D eps_e`` and the plastic increment of
+        the radial return ``deps_p = dp 3/2 s_n+1 / q_n+1`` (engineering shear), the
+        trapezoidal form that makes ``psi_n+1 - psi_n + dissipated`` equal to
+        ``1/2 (sig_n + sig_n+1) . deps`` exactly (see :mod:`lagamine_py.solver.energy`)."""
+        e_new = np.asarray(state_new["eps_e"], float)
+        e_old = np.broadcast_to(np.asarray(state_old["eps_e"], float), e_new.shape)
+        s_new, s_old = e_new @ self.D_elastic.T, e_old @ self.D_elastic.T
+        psi = 0.5 * np.einsum("...s,...s->...", s_new, e_new)
+        dp = (np.asarray(state_new["peeq"], float)
+              - np.broadcast_to(np.asarray(state_old["peeq"], float), psi.shape))
+        dev = s_new - s_new[..., :3].sum(-1, keepdims=True) / 3.0 * _NORMAL
+        q = np.sqrt(1.5 * (np.sum(dev[..., :3] ** 2, -1) + 2.0 * dev[..., 3] ** 2))
+        flow = 1.5 * dev * np.array([1.0, 1.0, 1.0, 2.0])             # 3/2 s, engineering
+        scale = np.divide(dp, q, out=np.zeros_like(dp), where=(dp != 0.0) & (q > 0.0))
+        deps_p = scale[..., None] * flow
+        dissipated = 0.5 * np.einsum("...s,...s->...", s_old + s_new, deps_p)
+        return psi, dissipated
+
+
 class J2Linear(J2Plasticity):
     """J2 plasticity with linear isotropic hardening ``sigma_y = SIGMAY + H peeq``
     (``H = 0``: perfect plasticity).  The return mapping is closed-form."""

@@ -15,8 +15,8 @@ __all__ = ["CellBlock", "ContactPoints", "FailedAttempt", "IncrementResult", "Wr
            "DEFAULT_WRITERS", "default_writers"]
 
 #: the built-in writers every run gets unless ``*OUTPUT, WRITERS=`` says otherwise: VTK series,
-#: contact tables, reactions, status/log, end-of-step displacements (for compare)
-DEFAULT_WRITERS = ("VTK", "CONTACT", "REACTIONS", "STATUS", "DISPLACEMENTS")
+#: contact tables, reactions, status/log, end-of-step displacements (for compare), tool forces
+DEFAULT_WRITERS = ("VTK", "CONTACT", "REACTIONS", "STATUS", "DISPLACEMENTS", "TOOLS")
 
 
 def default_writers(outdir: Path, model, names=DEFAULT_WRITERS, append: bool = False) -> list[Writer]:

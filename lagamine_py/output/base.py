@@ -33,7 +33,22 @@ import numpy as np
 from ..core.plugin import Plugin
 from ..elements.base import CellBlock, ContactPoints
 
-__all__ = ["Writer", "IncrementResult", "FailedAttempt", "CellBlock", "ContactPoints"]
+__all__ = ["Writer", "IncrementResult", "FailedAttempt", "CellBlock", "ContactPoints", "ToolState"]
+
+
+@dataclass
+class ToolState:
+    """A rigid tool (a foundation) at a converged increment: its placement ``(dx, dy, theta)``
+    (the translation of its reference point and its rotation about it, counter-clockwise), the
+    reference point now ``point`` (2,), and the force (2,) and moment (about ``point``) it
+    exerts on the bodies -- at equilibrium the reactions of its reference node.  ``ref_node``
+    the node id of its reference node (None for a tool moved by ``*FOUNDATION MOTION``)."""
+    name: str
+    ref_node: int | None
+    placement: np.ndarray
+    point: np.ndarray
+    force: np.ndarray
+    moment: float
 
 
 @dataclass
@@ -51,7 +66,7 @@ class IncrementResult:
     coords0: np.ndarray           # (n, 2) reference coordinates
     u: np.ndarray                 # (n, 2) displacement
     reaction: np.ndarray          # (n, 2) reaction force at constrained DOFs (0 elsewhere)
-    reactions_by_set: dict[str, np.ndarray]     # target name -> (2,) summed RF1, RF2
+    reactions_by_set: dict[str, np.ndarray]     # target name -> (3,) summed RF1, RF2, RM6
     cells: list[CellBlock]        # one per solid group: topology, ids, conn, Gauss stress and PEEQ
     contacts: list[ContactPoints] = field(default_factory=list)
     foundations: dict[str, np.ndarray] = field(default_factory=dict)   # name -> (m,2) current points
@@ -59,6 +74,9 @@ class IncrementResult:
     step_end: bool = False        # the last increment of its step (the step time reached)
     residual_history: list[float] = field(default_factory=list)
     loads: dict[str, float] = field(default_factory=dict)   # the step's loads reached: label -> value
+    tools: dict[str, ToolState] = field(default_factory=dict)   # foundation name -> its state
+    # the energy balance since t = 0 (lagamine_py.solver.energy.TERMS), when the run tracks it
+    energy: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass

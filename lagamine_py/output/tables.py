@@ -8,7 +8,8 @@ block of rows per increment, flushed before returning.
   ``slip``, ``none``).
 * ``contact_totals.csv``: one row per contact pair on every converged increment (cheap, and it
   makes the P(t), T(t) curves independent of the field-output frequency), same CONTACT=NO rule.
-* ``reactions.csv``: one row per imposed-displacement target on every converged increment.
+* ``reactions.csv``: one row per imposed-displacement target on every converged increment:
+  RF1, RF2 and RM6 (the moment of a tool's reference node, 0 for other nodes).
 
 Resuming a run (``append=True``, for ``lagamine-py run --restart``): the files are opened for
 appending, and when the first increment arrives the rows at or after its (step, increment) --
@@ -37,7 +38,9 @@ CONTACT_HEADER = ("step", "increment", "time", "element", "gauss", "x", "y",
                   "signed_slip", "slip_increment", "dissipation")
 # the energy the pair has dissipated by friction since the start of the run (ContactPoints.E)
 TOTALS_HEADER = ("step", "increment", "time", "contact", "P", "T", "dissipated_energy")
-REACTIONS_HEADER = ("step", "increment", "time", "nset", "RF1", "RF2")
+# RM6: the reaction moment of the rotation DOFs of the tools' reference nodes among the target's
+# nodes (0 for other nodes), appended so that older readers keep working
+REACTIONS_HEADER = ("step", "increment", "time", "nset", "RF1", "RF2", "RM6")
 
 
 def fmt(values) -> np.ndarray:
@@ -200,6 +203,12 @@ class ReactionsWriter(_CsvWriter):
     def increment(self, result: IncrementResult) -> None:
         self._begin(result)
         head = [str(result.step), str(result.increment), fmt(result.time)[()]]
-        self._rows.writerows(head + [name, *fmt(np.asarray(rf, float).ravel()[:2])]
+        self._rows.writerows(head + [name, *fmt(_rf3(rf))]
                              for name, rf in result.reactions_by_set.items())
         self._flush()
+
+
+def _rf3(rf) -> np.ndarray:
+    """(RF1, RF2, RM6) of a target's summed reactions (RM6 0 when not given)."""
+    a = np.asarray(rf, float).ravel()[:3]
+    return np.concatenate([a, np.zeros(3 - a.size)])

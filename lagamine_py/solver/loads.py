@@ -101,10 +101,12 @@ class StepLoads:
         return {self.surfaces[k]: float(v) for k, v in zip(self.dload.keys, vals)}
 
     def motions(self, model, t: float) -> dict[str, np.ndarray]:
-        out = {name: np.zeros(2) for name in self.foundations}
+        """Placement (dx, dy, angle) of every foundation moved by ``*FOUNDATION MOTION`` at step
+        time ``t`` (zeros for the others)."""
+        out = {name: np.zeros(3) for name in self.foundations}
         vals = self.motion.at(self._frac(t), self._amp(model, t))
         for k, v in zip(self.motion.keys, vals):
-            out[self.foundations[k]] = np.array(v, float)
+            out[self.foundations[k]] = _placement(v)
         return out
 
     def reached(self, model) -> Reached:
@@ -173,8 +175,8 @@ def step_loads(model, step, reached: Reached, u: np.ndarray, reaction: np.ndarra
     targets = {} if "BOUNDARY" in op_new else dict(reached.bc_targets)
     for b in step.boundaries:
         nodes = np.asarray(b.nodes, np.int64)
-        for c in range(b.first - 1, b.last):
-            for d in (2 * nodes + c).tolist():
+        for comp in b.components:
+            for d in model.dof(nodes, comp - 1).tolist():
                 bc[d] = (float(u[d]), float(b.value), amp_of(b))
         targets[b.target] = np.union1d(targets.get(b.target, np.zeros(0, np.int64)), nodes)
     released = [d for d in reached.bc if d not in bc]
@@ -182,7 +184,7 @@ def step_loads(model, step, reached: Reached, u: np.ndarray, reaction: np.ndarra
     # CLOAD: removed ones (OP=NEW) ramp to zero; released reactions ramp to zero
     cl = {d: (v, 0.0 if "CLOAD" in op_new else v, -1) for d, v in reached.cload.items()}
     for cload in step.cloads:
-        for d in (2 * np.asarray(cload.nodes, np.int64) + cload.dof - 1).tolist():
+        for d in model.dof(np.asarray(cload.nodes, np.int64), cload.dof - 1).tolist():
             cl[d] = (reached.cload.get(d, 0.0), float(cload.value), amp_of(cload))
     cl_ramp = Ramp.build(cl)
     if released:
@@ -198,16 +200,22 @@ def step_loads(model, step, reached: Reached, u: np.ndarray, reaction: np.ndarra
         k = s_index[dload.surface.upper()]
         dl[k] = (reached.dload.get(surfaces[k], 0.0), float(dload.value), amp_of(dload))
 
-    # FOUNDATION MOTION (rigid translation reached at step end)
+    # FOUNDATION MOTION (rigid translation and rotation reached at step end)
     f_index = {f.upper(): i for i, f in enumerate(foundations)}
     mo = {f_index[f.upper()]: (v, v, -1) for f, v in reached.motion.items()}
     for m in step.motions:
         k = f_index[m.foundation.upper()]
-        here = reached.motion.get(foundations[k], np.zeros(2))
-        mo[k] = (here, np.array([m.dx, m.dy], float), amp_of(m))
+        here = _placement(reached.motion.get(foundations[k], np.zeros(3)))
+        mo[k] = (here, np.array([m.dx, m.dy, m.angle], float), amp_of(m))
 
     return StepLoads(float(step.period), amp_names, list(surfaces), list(foundations),
-                     Ramp.build(bc), cl_ramp, Ramp.build(dl), Ramp.build(mo, width=2), targets)
+                     Ramp.build(bc), cl_ramp, Ramp.build(dl), Ramp.build(mo, width=3), targets)
+
+
+def _placement(v) -> np.ndarray:
+    """A foundation placement as (dx, dy, angle) (a translation alone has angle 0)."""
+    v = np.asarray(v, float).ravel()
+    return np.concatenate([v, np.zeros(3 - v.size)]) if v.size < 3 else v
 
 
 def driving_loads(model, step, loads: StepLoads, t: float) -> dict[str, float]:
@@ -215,10 +223,10 @@ def driving_loads(model, step, loads: StepLoads, t: float) -> dict[str, float]:
     what a user reads as "the load reached" (``lagamine-py plot`` labels its states with them).
 
     Labels: ``U<dof> <target>`` an imposed displacement (the mean of its nodes' values: they
-    differ only when the nodes started from different displacements), ``P <surface>`` a
-    pressure, ``CF<dof> <target>`` a nodal force (per node), ``<foundation> dx`` / ``dy`` a
-    foundation's translation.  A line whose value stays what it was (a support held at 0) is
-    not a driving load and is left out."""
+    differ only when the nodes started from different displacements; ``UR6`` a reference node's
+    rotation), ``P <surface>`` a pressure, ``CF<dof> <target>`` a nodal force (per node;
+    ``CM6`` a moment), ``<foundation> dx`` / ``dy`` / ``angle`` a foundation's motion.  A line
+    whose value stays what it was (a support held at 0) is not a driving load and is left out."""
     frac, amp = loads._frac(t), loads._amp(model, t)
     out: dict[str, float] = {}
 
@@ -230,16 +238,16 @@ def driving_loads(model, step, loads: StepLoads, t: float) -> dict[str, float]:
         values = loads.bc.at(frac, amp)
         for b in step.boundaries:
             nodes = np.asarray(b.nodes, np.int64)
-            for c in range(b.first - 1, b.last):
-                rows = np.searchsorted(loads.bc.keys, 2 * nodes + c)
+            for comp in b.components:
+                rows = np.searchsorted(loads.bc.keys, model.dof(nodes, comp - 1))
                 if moving(loads.bc, rows):
-                    out[f"U{c + 1} {b.target}"] = float(np.mean(values[rows]))
+                    out[f"{'UR' if comp == 6 else 'U'}{comp} {b.target}"] = float(np.mean(values[rows]))
     if step.cloads:
         values = loads.cload.at(frac, amp)
         for cl in step.cloads:
-            rows = np.flatnonzero(np.isin(loads.cload.keys, 2 * np.asarray(cl.nodes) + cl.dof - 1))
+            rows = np.flatnonzero(np.isin(loads.cload.keys, model.dof(np.asarray(cl.nodes), cl.dof - 1)))
             if moving(loads.cload, rows):
-                out[f"CF{cl.dof} {cl.target}"] = float(np.mean(values[rows]))
+                out[f"{'CM' if cl.dof == 6 else 'CF'}{cl.dof} {cl.target}"] = float(np.mean(values[rows]))
     if step.dloads:
         pressures = loads.pressures(model, t)
         for d in step.dloads:
@@ -252,7 +260,7 @@ def driving_loads(model, step, loads: StepLoads, t: float) -> dict[str, float]:
         for m in step.motions:
             name = next(f for f in loads.foundations if f.upper() == m.foundation.upper())
             rows = np.flatnonzero(loads.motion.keys == loads.foundations.index(name))
-            for i, axis in enumerate(("dx", "dy")):
+            for i, axis in enumerate(("dx", "dy", "angle")):
                 if len(rows) and ((loads.motion.amp[rows] >= 0).any()
                                   or np.any(loads.motion.start[rows, i] != loads.motion.target[rows, i])):
                     out[f"{name} {axis}"] = float(motions[name][i])

@@ -272,8 +272,9 @@ def _linear_solve(solver, free, data, rhs):
         solver.factor(A)
         return solver.solve(rhs)
     except SingularMatrixError as exc:
-        raise SingularMatrixError(free.free[exc.dofs], exc.detail,
-                                  span=diagonal_span(A)) from None
+        err = SingularMatrixError(free.free[exc.dofs], exc.detail, span=diagonal_span(A))
+        err.matrix = data                    # for the rigid-body diagnosis of the controller
+        raise err from None
 
 
 def diagonal_span(A) -> tuple[float, float]:

@@ -26,14 +26,19 @@ import numpy as np
 __all__ = ["first_iterate", "extrapolated", "foundation_shift"]
 
 
-def first_iterate(u: np.ndarray, last, dt: float, mode: str, ctx) -> tuple[np.ndarray, np.ndarray | None]:
+def first_iterate(u: np.ndarray, last, dt: float, mode: str, ctx,
+                  nodal: int | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """Newton's first iterate and its *predicted* part (the extrapolated displacement, whose
     energy the energy test counts; None when the start is the converged state or its rigid
-    translation, which cost no energy)."""
+    translation, which cost no energy).  ``nodal``: the number of nodal DOFs (two per node),
+    which come first in ``u`` (default all; the rest, the rotations of reference nodes, are
+    not shifted)."""
     ext = extrapolated(u, last, dt, mode)
     if ext is not None:
         return ext, ext - u
-    shift = foundation_shift(ctx, u.size)
+    shift = foundation_shift(ctx, u.size if nodal is None else nodal)
+    if shift is not None and shift.size < u.size:
+        shift = np.concatenate([shift, np.zeros(u.size - shift.size)])
     return (u + shift if shift is not None else u.copy()), None
 
 
@@ -48,13 +53,20 @@ def extrapolated(u: np.ndarray, last, dt: float, mode: str) -> np.ndarray | None
 
 def foundation_shift(ctx, ndof: int) -> np.ndarray | None:
     """(ndof,) translation of every node by the foundations' common motion ``dc`` over the
-    increment (``ctx.foundation_old/new``), or None when they do not all move by the same
-    nonzero ``dc``."""
+    increment (``ctx.foundation_old/new``, placements (dx, dy) or (dx, dy, theta)), or None
+    when they do not all move by the same nonzero ``dc`` without turning."""
     old, new = ctx.foundation_old, ctx.foundation_new
     if not old or not new or set(old) != set(new):
         return None
-    steps = [np.asarray(new[n], float) - np.asarray(old[n], float) for n in new]
+    steps = [_padded(new[n]) - _padded(old[n]) for n in new]
     dc = steps[0]
-    if not np.any(dc != 0.0) or any(np.any(s_ != dc) for s_ in steps[1:]) or ndof % 2:
+    if (not np.any(dc[:2] != 0.0) or dc[2] != 0.0 or any(np.any(s_ != dc) for s_ in steps[1:])
+            or ndof % 2):
         return None
-    return np.tile(dc, ndof // 2)
+    return np.tile(dc[:2], ndof // 2)
+
+
+def _padded(v) -> np.ndarray:
+    """A placement as (dx, dy, theta)."""
+    v = np.asarray(v, float).ravel()
+    return np.concatenate([v, np.zeros(3 - v.size)]) if v.size < 3 else v

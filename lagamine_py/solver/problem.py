@@ -8,7 +8,7 @@ assembles them.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -52,6 +52,15 @@ class Problem:
     warnings: list[str] = field(default_factory=list)   # model advice, logged when the run starts
     notices: list[str] = field(default_factory=list)    # what the deck builder did, logged too
     kernel: str = "AUTO"        # solid-group kernel: AUTO / NUMPY / NUMBA (see set_kernel)
+    #: foundation name -> the global DOFs of its reference node (u, v[, rotation])
+    tools: dict[str, np.ndarray] = field(default_factory=dict)
+    #: contact law name -> instance (the *CONTACT laws and those *CHANGE CONTACT LAW names)
+    contact_laws: dict[str, Any] = field(default_factory=dict)
+    #: contact group index -> the name of the law it has now, and its *CONTACT law
+    pair_laws: dict[int, str] = field(default_factory=dict)
+    initial_laws: dict[int, str] = field(default_factory=dict)
+    #: the nodal DOFs (two per node) come first; the rotations of reference nodes after them
+    nodal: int = -1
 
     @property
     def ndof(self) -> int:
@@ -87,7 +96,9 @@ class Problem:
         Raises :class:`~lagamine_py.core.errors.GroupFailure` when a group reports a failure
         or raises an ``ArithmeticError`` (a ``CutbackRequest``, floating-point errors); a
         cut-back request's factor goes with it."""
-        un, uo = u_new.reshape(-1, 2), u_old.reshape(-1, 2)
+        n2 = u_new.size if self.nodal < 0 else self.nodal
+        un, uo = u_new[:n2].reshape(-1, 2), u_old[:n2].reshape(-1, 2)
+        ctx = self.tool_context(ctx, u_new, u_old)
         results, vectors = [], {}
         fused = [g.fused for g in self.groups]
         data = np.zeros(self.pattern.nnz) if tangent and any(fused) else None
@@ -115,6 +126,52 @@ class Problem:
             data = self.pattern.assemble_data([None if f else r.K for f, r in zip(fused, results)],
                                               out=data)
         return Evaluation(f_int, data, [r.state for r in results], scale, results)
+
+    def placement(self, name: str, u: np.ndarray) -> np.ndarray:
+        """(3,) placement (dx, dy, theta) of the tool ``name`` (with a reference node) in ``u``."""
+        d = self.tools[name]
+        out = np.zeros(3)
+        out[:len(d)] = u[d]
+        return out
+
+    def tool_context(self, ctx, u_new: np.ndarray, u_old: np.ndarray):
+        """``ctx`` with the placements of the tools that have a reference node taken from the
+        displacements ``u_old`` (start) and ``u_new`` (end of the increment)."""
+        if not self.tools:
+            return ctx
+        old, new = dict(ctx.foundation_old), dict(ctx.foundation_new)
+        for name in self.tools:
+            old[name] = self.placement(name, u_old)
+            new[name] = self.placement(name, u_new)
+        return replace(ctx, foundation_old=old, foundation_new=new)
+
+    def laws_of_step(self, si: int) -> dict[int, str]:
+        """Contact group index -> the name of the law it uses in step ``si`` (0-based): its
+        ``*CONTACT`` law, or the last ``*CHANGE CONTACT LAW`` of steps up to ``si``."""
+        out = {}
+        for k in self.indices(CONTACT):
+            if k in self.initial_laws:
+                out[k] = self.initial_laws[k]
+        changes = {}
+        for step in self.model.steps[:si + 1]:
+            for ch in step.law_changes:
+                changes[ch.pair.upper()] = ch.law
+        for k in self.indices(CONTACT):
+            law = changes.get(self.group_names[k].upper())
+            if law is not None:
+                out[k] = _key(self.contact_laws, law)
+        return out
+
+    def set_step_laws(self, si: int, states: list[dict]) -> list[dict]:
+        """Give every contact group the law of step ``si`` (:meth:`laws_of_step`); returns the
+        committed states, those of the groups whose law changed carried over
+        (:meth:`~lagamine_py.elements.contact.ContactGroup.set_law`)."""
+        states = list(states)
+        for k, law in self.laws_of_step(si).items():
+            if self.pair_laws.get(k) != law:
+                states[k] = self.groups[k].set_law(self.contact_laws[law], states[k])
+                self.pair_laws[k] = law
+        return states
 
     def check_tangent(self, u_new: np.ndarray, u_old: np.ndarray, states: list[dict], ctx,
                       h: float = 1e-7, dofs=None) -> float:
@@ -181,19 +238,26 @@ def build_problem(model) -> Problem:
         names.append(f"{blk.type} {blk.elset}".strip())
         blocks.append(blk)
 
-    foundations = {name: Foundation(spec.points, name) for name, spec in model.foundations.items()}
+    foundations = {name: Foundation(spec.points, name, centre=spec.centre)
+                   for name, spec in model.foundations.items()}
+    tools = {name: tool_dofs(model, spec) for name, spec in model.foundations.items()
+             if spec.ref_node is not None}
     contact_laws = {name: get("contact_laws", spec.type)(**spec.params)
                     for name, spec in model.contact_laws.items()}
     lookup = model.element_lookup()
+    initial_laws = {}
     for cs in model.contacts:
         surf = _surface(model, cs.surface)
         face_nodes, elements, faces = surface_faces(model, surf.name)
         fname = _key(model.foundations, cs.foundation)
         name = f"{surf.name}->{fname}"
-        claw = contact_laws[_key(model.contact_laws, cs.law)]
+        law_name = _key(model.contact_laws, cs.law)
+        claw = contact_laws[law_name]
+        initial_laws[len(groups)] = law_name
         groups.append(ContactGroup(name, face_nodes, elements, faces, model.coords,
                                    foundations[fname], fname, claw, cs.gauss,
-                                   model.axisymmetric, _surface_thickness(model, surf, lookup)))
+                                   model.axisymmetric, _surface_thickness(model, surf, lookup),
+                                   tools.get(fname)))
         advice.extend(penalty_advice(name, claw, face_nodes, elements, model, laws, lookup))
         kinds.append(CONTACT)
         names.append(name)
@@ -214,9 +278,19 @@ def build_problem(model) -> Problem:
 
     pattern = Pattern(model.ndof, [g.dofs for g in groups])
     problem = Problem(model, groups, kinds, names, blocks, pressure_groups, foundations, pattern,
-                      advice, list(model.notices))
+                      advice, list(model.notices), tools=tools, contact_laws=contact_laws,
+                      pair_laws=dict(initial_laws), initial_laws=initial_laws,
+                      nodal=2 * len(model.node_ids))
     problem.set_kernel("AUTO")       # a problem used directly behaves as a run's default
     return problem
+
+
+def tool_dofs(model, spec) -> np.ndarray:
+    """The global DOFs of a foundation's reference node: u, v and, in plane strain, the
+    rotation (:meth:`~lagamine_py.model.Model.dof`)."""
+    r = int(spec.ref_node)
+    comps = (0, 1) if model.axisymmetric else (0, 1, 5)
+    return np.array([int(model.dof([r], c)[0]) for c in comps], np.int64)
 
 
 # Penalties outside this range of E/h (h the face length) are reported: too soft a KP lets the

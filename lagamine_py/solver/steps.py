@@ -46,6 +46,8 @@ from ..model import CONTROL_PARAMS
 from .. import registry
 from ..output import DEFAULT_WRITERS, FailedAttempt, IncrementResult, default_writers
 from . import restart as rs
+from . import tools
+from .energy import EnergyAccount
 from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, driving_loads, step_loads
 from .newton import FLOOR_FRACTION, Settings, solve_increment
@@ -182,6 +184,7 @@ class Controller:
         self.total_time = float(sum(float(st.period) for st in model.steps))
         self.progress = Progress(enabled=progress, total=self.total_time)
         self.last_contacts: list = []     # the contact points of the last hand-out (summary)
+        self.last_tools: dict = {}        # and the tools' states
         self.wall0 = _time.perf_counter()
         n = problem.ndof
         self.u = np.zeros(n)
@@ -197,6 +200,10 @@ class Controller:
         self._kernel_text = None          # what the log last said of the solid kernel
         self.notes: list[str] = []        # said in the log once the writers started
         self.time_reached = 0.0           # total time of the last converged increment
+        self.nodal = 2 * len(model.node_ids)      # the rotations of reference nodes follow
+        self.energy = EnergyAccount(n) if tracks_energy(model) else None
+        self._previous = None             # (u, states) before the last commit (energy)
+        self._last_energy: dict = {}      # the energy terms of the last hand-out
 
     # -- the run ---------------------------------------------------------------------------
     def run(self, restart: bool) -> Outcome:
@@ -302,6 +309,13 @@ class Controller:
                          f"T/P = {ratio}; {len(st)} points: {counts['open']} open, "
                          f"{counts['stick']} stick, {counts['slip']} slip"
                          + (f", {counts['none']} facing no foundation" if counts["none"] else ""))
+        for ts in self.last_tools.values():
+            if ts.ref_node is None and not np.any(ts.placement):
+                continue                    # a fixed foundation: its force is the contacts' above
+            node = f" (reference node {ts.ref_node})" if ts.ref_node is not None else ""
+            lines.append(f"tool {ts.name}{node}: force ({ts.force[0]:.6g}, {ts.force[1]:.6g}){force}, "
+                         f"moment {ts.moment:.6g}; moved by ({ts.placement[0]:.6g}, "
+                         f"{ts.placement[1]:.6g}), turned by {ts.placement[2]:.6g} rad")
         pvd = self.outdir / f"{self.model.name or 'run'}.pvd"
         lines.append(f"results in {self.outdir}" + (f" (ParaView: {pvd})" if pvd.exists() else ""))
         lines.append(f"wall time {_time.perf_counter() - self.wall0:.1f} s")
@@ -311,6 +325,7 @@ class Controller:
         """Run step ``si`` (from its start, or from ``resume``): the increment loop."""
         step = self.model.steps[si]
         controls, settings, solver = self._setup_step(si, step)
+        self.states = self.problem.set_step_laws(si, self.states)   # *CHANGE CONTACT LAW
         if resume is not None:
             loads, last = resume["loads"], resume["last"]
             stepper = Stepper.start(step, controls, resume["t"], resume["dt"], resume["inc"])
@@ -332,6 +347,7 @@ class Controller:
             self._hand_out(si, step, loads, stepper.inc, t, stepper.attempt, conv,
                            stepper.cutbacks, stepper.period, stepper.finished)
             self._save_restart(si, loads, stepper, last)
+        self._log_step_energy(si)
         self.reached = loads.reached(self.model)
         self.time_offset += stepper.period
 
@@ -375,7 +391,7 @@ class Controller:
             try:
                 return self._attempt(step, loads, free, solver, settings, controls, stepper, last)
             except (ConvergenceFailure, SingularMatrixError) as exc:
-                reason = self._failure_text(exc)
+                reason = self._failure_text(exc, free)
                 if isinstance(exc, SingularMatrixError) and not self.has_contact:
                     raise StepFailed(f"step {si + 1} ({step.name}) stopped at step time "
                                      f"{stepper.t:g} of {stepper.period:g}: {reason}") from None
@@ -406,11 +422,14 @@ class Controller:
         ctx = StepContext(nlgeom=bool(step.nlgeom), t_old=self.time_offset + t,
                           t_new=self.time_offset + t_new,
                           foundation_old=loads.motions(model, t),
-                          foundation_new=loads.motions(model, t_new))
+                          foundation_new=loads.motions(model, t_new),
+                          stabilisation=tools.stabilisation_context(problem, step, t, dt))
         problem.set_pressures(loads.pressures(model, t_new))
         f_ext = loads.f_ext(model, t_new, problem.ndof)
         u_c = loads.bc_values(model, t_new)
-        start, predicted = first_iterate(self.u, last, dt, controls["EXTRAPOLATION"], ctx)
+        start, predicted = first_iterate(
+            self.u, last, dt, controls["EXTRAPOLATION"],
+            tools.predictor_context(problem, ctx, self.u, free.constrained, u_c), self.nodal)
         watched = {k: problem.group_names[k] for k in problem.indices(CONTACT)}
         log.info("  increment at step time %g, dt %g", t_new, dt)
         # an overflow becomes inf or NaN, which Newton reports as a typed failure (NotANumber:
@@ -424,6 +443,7 @@ class Controller:
         return conv
 
     def _commit(self, conv, loads, free) -> None:
+        self._previous = (self.u, self.states)
         self.u = conv.u
         self.states = conv.states
         self.reaction = np.zeros_like(self.u)
@@ -435,25 +455,33 @@ class Controller:
     # -- output ----------------------------------------------------------------------------
     def _hand_out(self, si, step, loads, inc, t, dt, conv, cutbacks, T, step_end=False) -> None:
         model = self.model
-        u2 = self.u.reshape(-1, 2)
-        reaction2 = self.reaction.reshape(-1, 2)
-        by_set = {name: reaction2[np.asarray(nodes, np.int64)].sum(axis=0)
-                  for name, nodes in loads.bc_targets.items()}
+        u2 = self.u[:self.nodal].reshape(-1, 2)
+        reaction2 = self.reaction[:self.nodal].reshape(-1, 2)
+        by_set = tools.reactions_by_target(model, loads.bc_targets, self.reaction)
         freq = max(int(step.output.frequency), 1)
-        motions = loads.motions(model, t)
+        place = tools.placements(self.problem, loads, model, self.u, t)
+        ctx = self.problem.tool_context(conv.ctx, self.u, self.u)
+        contacts = self._contacts(u2, ctx)
+        tool_states = tools.tool_states(model, place, contacts)
+        energy = {}
+        if self.energy is not None:
+            u_old, states_old = self._previous
+            F = self.energy.applied_forces(self.problem, self.u, ctx, conv.f_ext, self.reaction)
+            energy = self.energy.commit(self.problem, u_old, self.u, states_old, self.states, F,
+                                        contacts, tool_states)
         result = IncrementResult(
             step=si + 1, step_name=step.name, increment=inc,
             time=self._time(self.time_offset + t), step_time=round_time(t, self.total_time),
             dt=dt, iterations=conv.iterations, residual=conv.residual,
             cutbacks=cutbacks, coords0=model.coords, u=u2.copy(), reaction=reaction2.copy(),
             reactions_by_set=by_set, cells=self._cells(step.nlgeom),
-            contacts=self._contacts(u2, conv.ctx),
-            foundations={name: np.asarray(spec.points, float) + motions[name]
-                         for name, spec in model.foundations.items()},
+            contacts=contacts, foundations=tools.foundation_points(model, place),
             write_fields=(inc % freq == 0) or t >= T, step_end=bool(step_end),
             residual_history=list(conv.history),
-            loads=driving_loads(model, step, loads, t))
+            loads=driving_loads(model, step, loads, t), tools=tool_states, energy=energy)
         self.last_contacts = result.contacts
+        self.last_tools = result.tools
+        self._last_energy = result.energy
         self.time_reached = result.time
         log.info("  converged: step %d increment %d, time %g, %d iterations, |R|/F %.3e",
                  si + 1, inc, result.time, conv.iterations, conv.residual)
@@ -466,22 +494,25 @@ class Controller:
         """The state at t = 0 to the writers (:meth:`Writer.initial`): nothing loaded yet, the
         foundations where the deck puts them, the contact points as they start."""
         model, step = self.model, self.model.steps[0] if self.model.steps else None
-        u2 = self.u.reshape(-1, 2)
+        u2 = self.u[:self.nodal].reshape(-1, 2)
         ctx = StepContext(nlgeom=bool(step and step.nlgeom),
-                          foundation_old={name: np.zeros(2) for name in model.foundations},
-                          foundation_new={name: np.zeros(2) for name in model.foundations})
+                          foundation_old={name: np.zeros(3) for name in model.foundations},
+                          foundation_new={name: np.zeros(3) for name in model.foundations})
+        contacts = self._contacts(u2, ctx)
+        place = {name: np.zeros(3) for name in model.foundations}
         result = IncrementResult(
             step=1, step_name=step.name if step else "", increment=0, time=0.0, step_time=0.0,
             dt=0.0, iterations=0, residual=0.0, cutbacks=0, coords0=model.coords, u=u2.copy(),
-            reaction=self.reaction.reshape(-1, 2).copy(), reactions_by_set={},
-            cells=self._cells(bool(step and step.nlgeom)), contacts=self._contacts(u2, ctx),
+            reaction=self.reaction[:self.nodal].reshape(-1, 2).copy(), reactions_by_set={},
+            cells=self._cells(bool(step and step.nlgeom)), contacts=contacts,
             foundations={name: np.asarray(spec.points, float)
-                         for name, spec in model.foundations.items()})
+                         for name, spec in model.foundations.items()},
+            tools=tools.tool_states(model, place, contacts))
         for w in self.writers.values():
             w.initial(result)
 
     def _cells(self, nlgeom: bool = False) -> list:
-        u2 = self.u.reshape(-1, 2)
+        u2 = self.u[:self.nodal].reshape(-1, 2)
         return [self.problem.groups[k].cell_block(u2, self.states[k], bool(nlgeom))
                 for k in self.problem.indices(SOLID)]
 
@@ -489,13 +520,38 @@ class Controller:
         return [self.problem.groups[k].points(u2, self.states[k], ctx)
                 for k in self.problem.indices(CONTACT)]
 
-    def _failure_text(self, exc) -> str:
+    def _failure_text(self, exc, free=None) -> str:
         if isinstance(exc, SingularMatrixError):
-            text = exc.describe(self.model.node_ids)
+            text = exc.describe(names=self.model.dof_names())
             if exc.ill_conditioned and self.problem.warnings:     # the penalties' advice says why
                 text += "; " + "; ".join(self.problem.warnings)
+            elif exc.matrix is not None and free is not None:
+                why = tools.explain_singular(self.problem, exc.matrix, free.free, self.states)
+                if why:
+                    text += f": {why}"
             return text
         return f"{exc.reason}: {exc}"
+
+    def _log_step_energy(self, si: int) -> None:
+        """At a step end: the stabilisation's energy against the work of the loads and tools
+        (a warning above 1 %), and the energy balance when the run tracks it."""
+        totals = [cp.stabilisation for cp in self.last_contacts]
+        work = None
+        if self.energy is not None:
+            e = self._last_energy
+            work = e.get("work")
+            if e:
+                log.info("  energy at the end of step %d: work %.6g = elastic %.6g + plastic %.6g "
+                         "+ friction %.6g + penalty %.6g + stabilisation %.6g; balance %.3g "
+                         "(%.3g %% of the work)", si + 1, e["work"], e["elastic"], e["plastic"],
+                         e["friction"], e["penalty"], e["stabilisation"], e["balance"],
+                         100 * e["relative"])
+        if self.model.steps[si].stabilisation is not None or any(totals):
+            stab = float(sum(totals))
+            share = f" ({100 * stab / abs(work):.3g} % of the work {work:.6g})" if work else ""
+            level = logging.WARNING if work and abs(stab) > 0.01 * abs(work) else logging.INFO
+            log.log(level, "  contact stabilisation: energy dissipated since the start %.6g%s",
+                    stab, share)
 
     def _report_failure(self, si, step, inc, t, dt, cutbacks, exc, reason) -> None:
         history = exc.history if isinstance(exc, ConvergenceFailure) else []
@@ -524,6 +580,8 @@ class Controller:
             data["last_du"], data["last_dt"] = last[0], np.array(last[1])
         data.update(rs.pack_states(self.states))
         data.update(loads.to_arrays())
+        if self.energy is not None:
+            data.update(self.energy.to_arrays())
         rs.save(self.outdir, data)
 
     def _load_restart(self) -> dict:
@@ -545,6 +603,8 @@ class Controller:
         self.total_increments = int(data["total_increments"])
         self.time_offset = float(data["time_offset"])
         self.force_ref = float(data["force_ref"])
+        if self.energy is not None:
+            self.energy.from_arrays(data)
         loads = StepLoads.from_arrays(data)
         si, t = int(data["step"]), float(data["t"])
         self.time_reached = self._time(self.time_offset + t)
@@ -556,6 +616,13 @@ class Controller:
         last = (data["last_du"].copy(), float(data["last_dt"])) if "last_du" in data else None
         return {"step": si, "loads": loads, "t": t, "dt": float(data["dt"]),
                 "inc": int(data["inc"]), "last": last}
+
+
+def tracks_energy(model) -> bool:
+    """Whether a run of ``model`` keeps the energy balance: a ``*CHECK, TYPE=ENERGY`` or a step
+    whose ``*OUTPUT, WRITERS=`` names ENERGY."""
+    return (any(str(c.get("type", "")).upper() == "ENERGY" for c in model.checks)
+            or any("ENERGY" in step.output.writers for step in model.steps))
 
 
 def _resume_or_none(resume):
