@@ -480,6 +480,81 @@ def bench_solvers(sizes, repeat: int = 5) -> list[dict]:
     return rows
 
 
+def bench_pardiso(sizes, repeat: int = 7) -> list[dict]:
+    """PARDISO's factorisation with and without the two-level algorithm (``iparm[23] = 10``) on
+    the press-slide tangent of :func:`bench_solvers`, and the symmetry test's cost against one
+    factorisation + solve.  The threads MKL uses are the process's (run it under
+    ``MKL_NUM_THREADS=1`` and ``=2``: ``pardiso-threads`` does both)."""
+    from lagamine_py.solver import linear
+
+    rows = []
+    for nx, ny in sizes:
+        A, b = _slide_tangent(nx, ny)
+        row = {"nx": nx, "ny": ny, "dofs": A.shape[0], "nnz": int(A.nnz),
+               "mkl_threads": os.environ.get("MKL_NUM_THREADS", "default")}
+        # both solvers analysed, then their factorisations alternated: a shared machine's
+        # load falls on both alike, and the ratio is taken per pair (median over the pairs)
+        solvers, x = {}, {}
+        for two in (False, True):
+            linear.PardisoSolver.TWO_LEVEL = two
+            solvers["two_level" if two else "default"] = s = linear.PardisoSolver()
+            s.factor(A)
+        times = {k: [] for k in solvers}
+        for _ in range(repeat):
+            for key, s in solvers.items():
+                times[key].append(_best(lambda: s.factor(A), 1))
+        for key, s in solvers.items():
+            row[f"{key}_factor_s"] = float(np.median(times[key]))
+            row[f"{key}_solve_s"] = _best(lambda: s.solve(b), repeat)
+            x[key] = s.solve(b)
+        row["two_level_over_default_pairs"] = [t2 / t1 for t1, t2 in
+                                               zip(times["default"], times["two_level"])]
+        s = solvers["two_level"]
+        row["symmetry_test_s"] = _best(lambda: s.is_symmetric(A), 5 * repeat)
+        d = A.data
+        row["whole_symmetry_test_s"] = _best(
+            lambda: np.abs(d - d[s._tperm]).max() <= 1e-13 * np.abs(d).max(), 5 * repeat)
+        for s in solvers.values():
+            s._release()
+        row["two_level_over_default"] = float(np.median(row["two_level_over_default_pairs"]))
+        row["symmetry_over_factor_solve"] = (row["symmetry_test_s"]
+                                             / (row["two_level_factor_s"] + row["two_level_solve_s"]))
+        row["rel_diff"] = float(np.abs(x["default"] - x["two_level"]).max()
+                                / np.abs(x["default"]).max())
+        row["load_average"] = os.getloadavg()
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return rows
+
+
+def _slide_tangent(nx: int, ny: int):
+    """The reduced press-slide tangent of :func:`bench_solvers` (contact pressed and sliding,
+    follower pressure: non-symmetric) and a right-hand side."""
+    from lagamine_py.deck import load_deck
+    from lagamine_py.elements.base import StepContext
+    from lagamine_py.solver.linear import FreeDofs
+    from lagamine_py.solver.problem import build_problem
+
+    with tempfile.TemporaryDirectory() as tmp:
+        deck = Path(tmp) / "d.dat"
+        deck.write_text(press_slide_deck(nx, ny))
+        model = load_deck(deck)
+    problem = build_problem(model)
+    n = len(model.coords)
+    u = np.zeros(2 * n)
+    bottom = np.flatnonzero(model.coords[:, 1] < 1e-9)
+    u[2 * bottom + 1] = -1e-4
+    u[2 * bottom] = 1e-3
+    problem.set_pressures({"PRESSED": 200.0})
+    still = {"FLAT": np.zeros(2)}
+    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, foundation_old=still,
+                      foundation_new=still)
+    ev = problem.evaluate(u, np.zeros(2 * n), problem.init_states(), ctx, True)
+    right = np.flatnonzero(model.coords[:, 0] > 40 - 1e-9)
+    A = FreeDofs(problem.pattern, 2 * right).kff(ev.data)
+    return A, np.random.default_rng(0).standard_normal(A.shape[0])
+
+
 def bench_startup(repeat: int = 5) -> float:
     """Best wall time of ``lagamine-py --help`` in a fresh interpreter."""
     cmd = [sys.executable, "-m", "lagamine_py", "--help"]
@@ -648,6 +723,12 @@ def main(argv=None) -> int:
     p = sub.add_parser("solvers")
     p.add_argument("--sizes", nargs="+", type=_size,
                    default=[(20, 10), (40, 20), (60, 30), (80, 40), (120, 60)])
+    p = sub.add_parser("pardiso")
+    p.add_argument("--sizes", nargs="+", type=_size, default=[(80, 40), (160, 80), (320, 160)])
+    p.add_argument("--json", type=Path)
+    p = sub.add_parser("pardiso-threads")
+    p.add_argument("--sizes", nargs="+", default=["80x40", "160x80", "320x160"])
+    p.add_argument("--json", type=Path, default=Path("bench_pardiso.json"))
     sub.add_parser("startup")
     p = sub.add_parser("vtu")
     p.add_argument("file", type=Path, help="a body .vtu of a run (e.g. of `one 160 80 --keep DIR`)")
@@ -702,6 +783,22 @@ def main(argv=None) -> int:
             comp = row["compressor"] + (f" {row['level']}" if row["level"] else "")
             print(f"| {row['encoding']} | {comp} | {row['ms']:.1f} | {row['MB']:.2f} | {row['meshio']} |")
         return 0
+    if args.cmd == "pardiso":
+        rows = bench_pardiso(args.sizes)
+        if args.json:
+            args.json.write_text(json.dumps(rows, indent=1))
+        return
+    if args.cmd == "pardiso-threads":
+        rows = []
+        for threads in ("1", "2"):
+            with tempfile.TemporaryDirectory() as tmp:
+                out = Path(tmp) / "p.json"
+                subprocess.run([sys.executable, __file__, "pardiso", "--sizes", *args.sizes,
+                                "--json", str(out)], check=True,
+                               env=dict(os.environ, MKL_NUM_THREADS=threads))
+                rows += json.loads(out.read_text())
+        args.json.write_text(json.dumps(rows, indent=1))
+        return
     if args.cmd == "startup":
         print(f"lagamine-py --help: {bench_startup():.3f} s (best of 5)")
         return 0
