@@ -223,6 +223,26 @@ def test_auto_picks_by_size(tangents, monkeypatch):
         assert _rel_residual(A, auto.solve(b), b) < 1e-10
 
 
+def test_large_run_without_pardiso_says_so_once(tangents, monkeypatch, caplog):
+    """AUTO above its PARDISO size without PARDISO installed: SPLU, and one warning per process
+    with the install command; none below the size."""
+    A = tangents["nonsym"]
+    monkeypatch.setattr(linear, "pardiso_available", lambda: False)     # as without MKL
+    monkeypatch.setattr(linear, "_told_slow", False)
+    monkeypatch.setattr(linear, "AUTO_PARDISO_DOFS", A.shape[0])
+    with caplog.at_level("WARNING", logger="lagamine_py.solver"):
+        make_solver("AUTO").factor(A)                    # not above the size: nothing said
+        assert not caplog.records
+        monkeypatch.setattr(linear, "AUTO_PARDISO_DOFS", A.shape[0] - 1)
+        for _ in range(3):
+            auto = make_solver("AUTO")
+            auto.factor(A)
+            assert isinstance(auto.impl, SpluSolver)
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 1 and "pip install 'lagamine_py[pardiso]'" in said[0], said
+    assert f"{A.shape[0]} free DOFs" in said[0]
+
+
 @needs_pardiso
 def test_whole_run_agrees_between_solvers(tmp_path):
     """Press-then-slide-like contact run (coulomb_block.dat) with SPLU and with PARDISO: the

@@ -8,7 +8,8 @@ Sub-commands (run from the repository root, in the project's venv)::
     python tools/bench.py assembly [--nx 160 --ny 80]              # us per element / Gauss point
                                                                     # (NumPy and numba kernels)
     python tools/bench.py solvers [--sizes 20x10 40x20 ...]        # SPLU vs PARDISO crossover
-    python tools/bench.py startup                                   # lagamine-py --help
+    python tools/bench.py startup [--trees A B]                     # --help, check, run of
+                                                                    # the main job, whole process
     python tools/bench.py vtu FILE.vtu                              # VTU encodings: time, size,
                                                                     # does meshio read it
     python tools/bench.py report --json F [--png P]                 # markdown table + plot
@@ -555,10 +556,32 @@ def _slide_tangent(nx: int, ny: int):
     return A, np.random.default_rng(0).standard_normal(A.shape[0])
 
 
-def bench_startup(repeat: int = 5) -> float:
-    """Best wall time of ``lagamine-py --help`` in a fresh interpreter."""
-    cmd = [sys.executable, "-m", "lagamine_py", "--help"]
-    return _best(lambda: subprocess.run(cmd, check=True, capture_output=True), repeat)
+def bench_startup(repeat: int = 5, trees: list[Path] | None = None) -> list[dict]:
+    """Best whole-process wall time of ``lagamine-py --help``, ``check`` and ``run`` of the main
+    job (``decks/press_slide.dat``), each in a fresh interpreter, with the byte code compiled
+    (``PYTHONDONTWRITEBYTECODE`` unset, one run beforehand) as after an install.  ``trees``:
+    source trees to compare (e.g. an export of an older commit), their runs interleaved so a
+    shared machine's load falls on all alike; default this one."""
+    trees = trees or [ROOT]
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    jobs = {"help": ["--help"], "check": ["check", str(DECK)]}
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs["run"] = ["run", str(DECK), "-q", "--overwrite", "-o", str(Path(tmp) / "out")]
+        best = {(t, j): np.inf for t in trees for j in jobs}
+        for i in range(repeat + 1):
+            for t in trees:
+                for j, argv in jobs.items():
+                    t0 = time.perf_counter()
+                    subprocess.run([sys.executable, "-m", "lagamine_py", *argv], check=True,
+                                   capture_output=True, cwd=tmp,
+                                   env=dict(env, PYTHONPATH=str(t)))
+                    if i:                                   # the first round compiles
+                        best[t, j] = min(best[t, j], time.perf_counter() - t0)
+        for t in trees:
+            rows.append({"tree": str(t), **{j: best[t, j] for j in jobs},
+                         "load_average": os.getloadavg()})
+    return rows
 
 
 # --------------------------------------------------------------------------------------------
@@ -729,7 +752,10 @@ def main(argv=None) -> int:
     p = sub.add_parser("pardiso-threads")
     p.add_argument("--sizes", nargs="+", default=["80x40", "160x80", "320x160"])
     p.add_argument("--json", type=Path, default=Path("bench_pardiso.json"))
-    sub.add_parser("startup")
+    p = sub.add_parser("startup")
+    p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--trees", type=Path, nargs="+", help="source trees to compare (default: "
+                   "this one), e.g. `git archive COMMIT | tar -x -C DIR`")
     p = sub.add_parser("vtu")
     p.add_argument("file", type=Path, help="a body .vtu of a run (e.g. of `one 160 80 --keep DIR`)")
     p.add_argument("--repeat", type=int, default=12)
@@ -800,7 +826,8 @@ def main(argv=None) -> int:
         args.json.write_text(json.dumps(rows, indent=1))
         return
     if args.cmd == "startup":
-        print(f"lagamine-py --help: {bench_startup():.3f} s (best of 5)")
+        for row in bench_startup(args.repeat, args.trees):
+            print(json.dumps(row))
         return 0
     if args.cmd == "report":
         results = []

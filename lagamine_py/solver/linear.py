@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import logging
 
 import numpy as np
 import scipy.sparse as sp
@@ -418,14 +419,26 @@ class _PardisoError(RuntimeError):
         self.code = code
 
 
+#: what a run on SPLU above AUTO_PARDISO_DOFS says, once per process
+SLOW_SOLVER_NOTICE = ("{n} free DOFs factorised by SPLU: PARDISO is 3-4x faster on such tangents "
+                      "(docs/performance.md); install it with: pip install 'lagamine_py[pardiso]'")
+_told_slow = False
+
+
 class AutoSolver(LinearSolver):
-    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise."""
+    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise
+    (saying so once per process, with the command that installs PARDISO)."""
 
     def __init__(self):
         self.impl: LinearSolver | None = None
 
     def factor(self, A: sp.csr_matrix) -> None:
-        want_pardiso = A.shape[0] > AUTO_PARDISO_DOFS and pardiso_available()
+        global _told_slow
+        large = A.shape[0] > AUTO_PARDISO_DOFS
+        want_pardiso = large and pardiso_available()
+        if large and not want_pardiso and not _told_slow:
+            _told_slow = True
+            logging.getLogger("lagamine_py.solver").warning(SLOW_SOLVER_NOTICE.format(n=A.shape[0]))
         cls = PardisoSolver if want_pardiso else SpluSolver
         if not isinstance(self.impl, cls):
             self.impl = cls()
