@@ -426,8 +426,9 @@ _told_slow = False
 
 
 class AutoSolver(LinearSolver):
-    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise
-    (saying so once per process, with the command that installs PARDISO)."""
+    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise.
+
+    SPLU above that size says so once per process, with the command that installs PARDISO."""
 
     def __init__(self):
         self.impl: LinearSolver | None = None
