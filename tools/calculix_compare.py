@@ -4,7 +4,7 @@ One command writes both decks of each size, runs them in turn (paired: ours, Cal
 CalculiX ...; best wall time of each), and prints a markdown table with the wall times, their
 ratio, the peak memory of each process and the end state's friction ratio T/P of each code::
 
-    python tools/calculix_compare.py --sizes 40x20 80x40 [--repeat 2] [--keep DIR]
+    python tools/calculix_compare.py --sizes 40x20 80x40 [--decks D ...] [--repeat 2] [--keep DIR]
 
 The scene is ``decks/press_slide.dat`` refined to NX x NY (``tools/bench.py``'s
 ``press_slide_deck``: pressed range and penalties adapted).  The CalculiX deck has the same
@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench import E_STEEL, press_slide_deck  # noqa: E402
+from bench import press_slide_deck  # noqa: E402
 
 SLAB_NX = 20            # elements of the fixed slab standing for the rigid flat
 SLAB_H = 2.0            # its thickness (mm)
@@ -42,24 +42,42 @@ SLAB_H = 2.0            # its thickness (mm)
 
 def ccx_deck(nx: int, ny: int) -> str:
     """The CalculiX input of press-then-slide at ``nx`` x ``ny`` (see the module doc)."""
+    return ccx_from_deck(press_slide_deck(nx, ny))
+
+
+def ccx_from_deck(text: str) -> str:
+    """The CalculiX input of a lagamine_py deck ``text`` made of one Q8 plane-strain block of an
+    ELASTIC or RAMBERG_OSGOOD material, one straight horizontal foundation under it, one COULOMB
+    contact without adhesion, and steps of ``*DLOAD`` pressures and ``*BOUNDARY`` values
+    (ValueError for anything else)."""
     from lagamine_py.deck import load_deck
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "d.dat"
-        path.write_text(press_slide_deck(nx, ny))
+        path.write_text(text)
         model = load_deck(path)
-    block = model.blocks[0]
+    if len(model.blocks) != 1 or len(model.contacts) != 1 or len(model.foundations) != 1:
+        raise ValueError("one solid block, one contact and one foundation only")
+    block, contact = model.blocks[0], model.contacts[0]
+    law = model.contact_laws[contact.law]
+    if law.type != "COULOMB" or float(law.params.get("B", 0.0)) != 0.0:
+        raise ValueError("a COULOMB contact law without adhesion (B=0) only")
+    flat = np.asarray(model.foundations[contact.foundation].points, float)
+    if np.ptp(flat[:, 1]) != 0.0:
+        raise ValueError("a straight horizontal foundation only")
+    mat = model.materials[block.material]
+    E, nu = float(mat.params["E"]), float(mat.params["NU"])
     xy, nid = model.coords, np.asarray(model.node_ids)
-    kp = 20 * E_STEEL / (40.0 / nx)
-    lines = ["** press-then-slide, written by tools/calculix_compare.py", "*NODE, NSET=NBLOCK"]
+    lines = ["** written by tools/calculix_compare.py", "*NODE, NSET=NBLOCK"]
     lines += [f"{int(i)}, {float(x)!r}, {float(y)!r}" for i, (x, y) in zip(nid, xy)]
-    # the slab: x from -20 to 80, y from -SLAB_H to 0, one row of CPE8, all nodes fixed
+    # the flat: a slab of CPE8 under the foundation's line, one row, all nodes fixed
     n0, e0 = int(nid.max()), int(np.max(block.ids))
-    xs = np.linspace(-20.0, 80.0, 2 * SLAB_NX + 1)
+    xs = np.linspace(flat[:, 0].min(), flat[:, 0].max(), 2 * SLAB_NX + 1)
+    y0 = float(flat[0, 1])
     slab = {}
     lines.append("*NODE, NSET=NSLAB")
     k = n0
-    for row, y in enumerate((-SLAB_H, -SLAB_H / 2, 0.0)):
+    for row, y in enumerate((y0 - SLAB_H, y0 - SLAB_H / 2, y0)):
         for col, x in enumerate(xs):
             if row == 1 and col % 2:
                 continue
@@ -75,32 +93,48 @@ def ccx_deck(nx: int, ny: int) -> str:
         conn = [slab[0, c], slab[0, c + 2], slab[2, c + 2], slab[2, c], slab[0, c + 1],
                 slab[1, c + 2], slab[2, c + 1], slab[1, c]]
         lines.append(f"{e0 + j + 1}, " + ", ".join(map(str, conn)))
-    bottom = model.surfaces["BLOCK_BOTTOM"]
-    pressed = model.surfaces["PRESSED"]
-    right = nid[model.nsets["BLOCK_RIGHT"]]
+    bottom = model.surfaces[contact.surface]
     lines += ["*SURFACE, NAME=SBOT, TYPE=ELEMENT"]
     lines += [f"{int(e)}, S{int(f)}" for e, f in zip(bottom.elements, bottom.faces)]
     lines += ["*SURFACE, NAME=SFLAT, TYPE=ELEMENT"]
     lines += [f"{e0 + j + 1}, S3" for j in range(SLAB_NX)]
-    lines += ["*NSET, NSET=RIGHT"] + [f"{int(i)}," for i in right]
-    lines += ["*MATERIAL, NAME=STEEL", "*ELASTIC", "210000., 0.3",
-              "*DEFORMATION PLASTICITY", "210000., 0.3, 250., 10., 0.5",
-              "*MATERIAL, NAME=RIGID", "*ELASTIC", "2.1e8, 0.3",
-              "*SOLID SECTION, ELSET=BLOCK, MATERIAL=STEEL", "1.",
+    lines += ["*MATERIAL, NAME=STEEL", "*ELASTIC", f"{E!r}, {nu!r}"]
+    if mat.law == "RAMBERG_OSGOOD":
+        p = mat.params
+        lines += ["*DEFORMATION PLASTICITY",
+                  f"{E!r}, {nu!r}, {float(p['SIGMA0'])!r}, {float(p['N'])!r}, {float(p['ALPHA'])!r}"]
+    elif mat.law != "ELASTIC":
+        raise ValueError(f"material law {mat.law}: ELASTIC or RAMBERG_OSGOOD only")
+    kp, kt, phi = (float(law.params[key]) for key in ("KP", "KT", "PHI"))
+    lines += ["*MATERIAL, NAME=RIGID", "*ELASTIC", f"{1000 * E!r}, 0.3",
+              "*SOLID SECTION, ELSET=BLOCK, MATERIAL=STEEL", f"{float(block.thickness)!r}",
               "*SOLID SECTION, ELSET=SLAB, MATERIAL=RIGID", "1.",
               "*CONTACT PAIR, INTERACTION=DRY, TYPE=SURFACE TO SURFACE", "SBOT, SFLAT",
               "*SURFACE INTERACTION, NAME=DRY",
               "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR", f"{kp:.6g}",
-              "*FRICTION", f"0.2, {kp:.6g}",
-              "*BOUNDARY", "NSLAB, 1, 2, 0.",
-              "*STEP, NLGEOM, INC=1000", "*STATIC", "0.25, 1., 1e-4, 0.25",
-              "*DLOAD"]
-    lines += [f"{int(e)}, P{int(f)}, 200." for e, f in zip(pressed.elements, pressed.faces)]
-    lines += ["*NODE FILE", "U", "*EL FILE", "S", "*END STEP",
-              "*STEP, NLGEOM, INC=1000", "*STATIC", "0.05, 1., 1e-5, 0.1",
-              "*BOUNDARY", "RIGHT, 1, 1, -0.005",
-              "*NODE FILE", "U", "*EL FILE", "S",
-              "*NODE PRINT, NSET=NSLAB, TOTALS=ONLY", "RF", "*END STEP"]
+              "*FRICTION", f"{phi!r}, {kt:.6g}",
+              "*BOUNDARY", "NSLAB, 1, 2, 0."]
+    nsets = 0
+    for k, step in enumerate(model.steps):
+        if step.cloads or step.motions or step.law_changes:
+            raise ValueError(f"step {step.name}: *DLOAD and *BOUNDARY only")
+        last = k == len(model.steps) - 1
+        lines += [f"*STEP{', NLGEOM' if step.nlgeom else ''}, INC={step.max_increments}",
+                  "*STATIC", f"{step.dt0!r}, {step.period!r}, {step.dt_min!r}, {step.dt_max!r}"]
+        if step.dloads:
+            lines.append("*DLOAD")
+            for d in step.dloads:
+                surf = model.surfaces[d.surface]
+                lines += [f"{int(e)}, P{int(f)}, {float(d.value)!r}"
+                          for e, f in zip(surf.elements, surf.faces)]
+        for bc in step.boundaries:
+            nsets += 1
+            lines += [f"*NSET, NSET=BC{nsets}"] + [f"{int(nid[r])}," for r in bc.nodes]
+            lines += ["*BOUNDARY", f"BC{nsets}, {bc.first}, {min(bc.last, 2)}, {float(bc.value)!r}"]
+        lines += ["*NODE FILE", "U", "*EL FILE", "S"]
+        if last:
+            lines += ["*NODE PRINT, NSET=NSLAB, TOTALS=ONLY", "RF"]
+        lines.append("*END STEP")
     return "\n".join(lines) + "\n"
 
 
@@ -117,7 +151,13 @@ def _timed(cmd: list[str], cwd: Path, env: dict) -> tuple[float, float, str]:
 
 def _ours_ratio(out: Path) -> float:
     rows = list(csv.DictReader(open(out / "contact_totals.csv")))
-    return float(rows[-1]["T"]) / float(rows[-1]["P"])
+    return abs(float(rows[-1]["T"]) / float(rows[-1]["P"]))
+
+
+def _dofs(out: Path) -> int:
+    """The run's DOFs: two per node of its displacement table."""
+    rows = list(csv.DictReader(open(out / "displacements.csv")))
+    return 2 * len({r["node"] for r in rows})
 
 
 def _ccx_ratio(dat: Path) -> float:
@@ -129,7 +169,8 @@ def _ccx_ratio(dat: Path) -> float:
     return abs(fx / fy)
 
 
-def compare(sizes, repeat: int, keep: Path | None) -> list[dict]:
+def compare(scenes, repeat: int, keep: Path | None) -> list[dict]:
+    """Paired runs of each scene ``(label, lagamine_py deck text)``."""
     ccx = shutil.which("ccx")
     if ccx is None:
         raise SystemExit("ccx not found: sudo apt-get install -y calculix-ccx")
@@ -137,10 +178,11 @@ def compare(sizes, repeat: int, keep: Path | None) -> list[dict]:
                CCX_NPROC_EQUATION_SOLVER="1")
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     rows = []
-    for nx, ny in sizes:
-        work = Path(tempfile.mkdtemp(prefix=f"ccx_{nx}x{ny}_", dir=keep))
-        (work / "ours.dat").write_text(press_slide_deck(nx, ny))
-        (work / "ccx.inp").write_text(ccx_deck(nx, ny))
+    for label, text in scenes:
+        work = Path(tempfile.mkdtemp(prefix=f"ccx_{re.sub(r'[^A-Za-z0-9]+', '_', label)}_",
+                                     dir=keep))
+        (work / "ours.dat").write_text(text)
+        (work / "ccx.inp").write_text(ccx_from_deck(text))
         ours_cmd = [sys.executable, "-m", "lagamine_py", "run", "ours.dat", "-o", "out", "-q",
                     "--overwrite"]
         best = {"ours": (np.inf, 0.0), "ccx": (np.inf, 0.0)}
@@ -149,7 +191,7 @@ def compare(sizes, repeat: int, keep: Path | None) -> list[dict]:
                 wall, mem, _ = _timed(cmd, work, env)
                 if wall < best[name][0]:
                     best[name] = (wall, mem)
-        row = {"mesh": f"{nx}x{ny}", "ours_s": best["ours"][0], "ccx_s": best["ccx"][0],
+        row = {"scene": label, "dofs": _dofs(work / "out"), "ours_s": best["ours"][0], "ccx_s": best["ccx"][0],
                "ratio": best["ours"][0] / best["ccx"][0], "ours_MB": best["ours"][1],
                "ccx_MB": best["ccx"][1], "ours_T/P": _ours_ratio(work / "out"),
                "ccx_T/P": _ccx_ratio(work / "ccx.dat"), "load_average": os.getloadavg()}
@@ -162,19 +204,27 @@ def compare(sizes, repeat: int, keep: Path | None) -> list[dict]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--sizes", nargs="+", default=["40x20", "80x40"])
+    ap.add_argument("--sizes", nargs="*", default=["40x20", "80x40"],
+                    help="press-then-slide meshes NXxNY")
+    ap.add_argument("--decks", nargs="*", type=Path, default=[],
+                    help="other decks (one Q8 block on a flat, Coulomb without adhesion, *DLOAD "
+                         "and *BOUNDARY steps), e.g. decks/coulomb_block_noadh.dat")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--keep", type=Path, help="directory to keep the decks and results in")
     args = ap.parse_args(argv)
-    sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.sizes]
+    scenes = []
+    for size in args.sizes:
+        nx, ny = (int(v) for v in size.lower().split("x"))
+        scenes.append((f"press-slide {nx}x{ny}", press_slide_deck(nx, ny)))
+    scenes += [(d.stem, d.read_text()) for d in args.decks]
     if args.keep:
         args.keep.mkdir(parents=True, exist_ok=True)
-    rows = compare(sizes, args.repeat, args.keep)
-    print("\n| mesh | lagamine_py (s) | CalculiX (s) | ours / CalculiX | peak MB ours | "
+    rows = compare(scenes, args.repeat, args.keep)
+    print("\n| scene | DOFs | lagamine_py (s) | CalculiX (s) | ours / CalculiX | peak MB ours | "
           "peak MB CalculiX | T/P ours | T/P CalculiX |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['mesh']} | {r['ours_s']:.2f} | {r['ccx_s']:.2f} | {r['ratio']:.3f} | "
+        print(f"| {r['scene']} | {r['dofs']} | {r['ours_s']:.2f} | {r['ccx_s']:.2f} | {r['ratio']:.3f} | "
               f"{r['ours_MB']:.0f} | {r['ccx_MB']:.0f} | {r['ours_T/P']:.4f} | {r['ccx_T/P']:.4f} |")
     return 0
 
