@@ -148,6 +148,50 @@ def test_pardiso_switches_mode_with_symmetry(tangents):
     assert p_forced.mtype == 11
 
 
+@needs_pardiso
+@pytest.mark.parametrize("where", [0.0, 0.37, 0.999])
+def test_symmetry_test_by_blocks_finds_one_broken_pair_anywhere(tangents, where):
+    """The block-wise symmetry test (early exit, starting where the last matrix failed) gives the
+    verdict of the whole-matrix test ``max |A - A^T| <= tol max |A|``: one broken pair at the
+    start, middle or end of ``data`` is found, whichever block the search starts from."""
+    S = tangents["sym"]
+    p = linear.PardisoSolver()
+    p.SYM_CHUNK = 97                       # many blocks on this small matrix
+    p.factor(S)
+    assert p.mtype == -2
+    j = min(int(where * S.nnz), S.nnz - 1)
+    j = j if S.indices[j] != np.searchsorted(S.indptr, j, side="right") - 1 else j + 1
+    T = sp.csr_matrix((S.data.copy(), S.indices, S.indptr), shape=S.shape)
+    T.data[j] += 1e-9 * np.abs(S.data).max()          # 1e4 x the tolerance, one entry
+    whole = np.abs(T.data - T.T.tocsr().sorted_indices().data).max() > p.SYM_RTOL * np.abs(T.data).max()
+    assert whole
+    for _ in range(2):                     # second time: the search starts at the failing block
+        assert not p.is_symmetric(T)
+    assert p.is_symmetric(S)               # and a symmetric matrix is read whole again
+    U = sp.csr_matrix((S.data.copy(), S.indices, S.indptr), shape=S.shape)
+    U.data[1] += 1e-9 * np.abs(S.data).max()   # the first row's first off-diagonal entry
+    assert U.indices[1] != 0 and not p.is_symmetric(U)     # found after wrapping around
+    T.data[j] = np.nan
+    assert not p.is_symmetric(T)
+
+
+@needs_pardiso
+@pytest.mark.parametrize("two_level", [True, False])
+def test_two_level_factorisation_agrees_with_splu(tangents, two_level, monkeypatch):
+    """PARDISO with and without its two-level factorisation (iparm[23] = 10, read because
+    iparm[0] = 1) solves the press-slide tangent to round-off, as SuperLU does."""
+    monkeypatch.setattr(linear.PardisoSolver, "TWO_LEVEL", two_level)
+    A, b = tangents["nonsym"], tangents["b"]
+    p = linear.PardisoSolver()
+    p.factor(A)
+    assert p.iparm[0] == 1 and p.iparm[23] == (10 if two_level else 0)
+    ref = SpluSolver()
+    ref.factor(A)
+    x, x_ref = p.solve(b), ref.solve(b)
+    assert _rel_residual(A, x, b) < 1e-10
+    assert np.abs(x - x_ref).max() <= 1e-10 * np.abs(x_ref).max()
+
+
 @pytest.mark.parametrize("solver", ["SPLU", pytest.param("PARDISO", marks=needs_pardiso)])
 def test_singular_tangent_is_reported(tangents, solver):
     """A body held at one node only can rotate: its tangent is singular.  SPLU sees a zero
@@ -179,6 +223,26 @@ def test_auto_picks_by_size(tangents, monkeypatch):
         assert _rel_residual(A, auto.solve(b), b) < 1e-10
 
 
+def test_large_run_without_pardiso_says_so_once(tangents, monkeypatch, caplog):
+    """AUTO above its PARDISO size without PARDISO installed: SPLU, and one warning per process
+    with the install command; none below the size."""
+    A = tangents["nonsym"]
+    monkeypatch.setattr(linear, "pardiso_available", lambda: False)     # as without MKL
+    monkeypatch.setattr(linear, "_told_slow", False)
+    monkeypatch.setattr(linear, "AUTO_PARDISO_DOFS", A.shape[0])
+    with caplog.at_level("WARNING", logger="lagamine_py.solver"):
+        make_solver("AUTO").factor(A)                    # not above the size: nothing said
+        assert not caplog.records
+        monkeypatch.setattr(linear, "AUTO_PARDISO_DOFS", A.shape[0] - 1)
+        for _ in range(3):
+            auto = make_solver("AUTO")
+            auto.factor(A)
+            assert isinstance(auto.impl, SpluSolver)
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 1 and "pip install 'lagamine_py[pardiso]'" in said[0], said
+    assert f"{A.shape[0]} free DOFs" in said[0]
+
+
 @needs_pardiso
 def test_whole_run_agrees_between_solvers(tmp_path):
     """Press-then-slide-like contact run (coulomb_block.dat) with SPLU and with PARDISO: the
@@ -201,6 +265,38 @@ def test_whole_run_agrees_between_solvers(tmp_path):
     scale = max(np.abs(r.u).max() for r in a)
     diff = max(np.abs(ra.u - rb.u).max() for ra, rb in zip(a, b))
     assert diff <= 1e-10 * scale
+
+
+@needs_pardiso
+def test_pardiso_analysis_kept_across_steps_with_the_same_free_dofs(tmp_path, monkeypatch):
+    """One solver for the run: a third step with the constraints of the second (a copy of it,
+    holding the push) factorises on the analysis of the second.  The run with the third step
+    makes one solver object and as many analyses as the run without it."""
+    import copy
+
+    from lagamine_py.solver import run, steps
+
+    made = []
+
+    def recording(name):
+        made.append(make_solver(name))
+        return made[-1]
+    monkeypatch.setattr(steps, "make_solver", recording)
+    counts = []
+    for hold_step in (False, True):
+        model = load_deck(DECKS / "coulomb_block.dat")
+        if hold_step:
+            hold = copy.deepcopy(model.steps[1])
+            hold.name = "HOLD"
+            model.steps.append(hold)
+        for step in model.steps:
+            step.controls["SOLVER"] = "PARDISO"
+        made.clear()
+        outcome = run(model, tmp_path / f"out{hold_step}", writers=[])
+        assert outcome.status == 0, outcome.message
+        assert len(made) == 1
+        counts.append((made[0].analyses, made[0].factorizations))
+    assert counts[1][0] == counts[0][0] and counts[1][1] > counts[0][1], counts
 
 
 def test_openblas_pinned_to_one_thread():

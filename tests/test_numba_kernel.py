@@ -90,6 +90,21 @@ def test_problem_kernel_setting_reaches_contact_groups():
     assert not on()
 
 
+def test_auto_never_picks_the_contact_kernel(monkeypatch):
+    """AUTO above the size rule: the solid groups on their kernel, the contact groups on the
+    NumPy reference (the contact kernel's compile never pays within a run; NUMBA still takes
+    it)."""
+    problem = problem_mod.build_problem(load_deck(DECKS / "press_slide.dat"))
+    monkeypatch.setattr(kernels, "AUTO_NUMBA_ELEMENTS", 1)
+    problem.set_kernel("AUTO")
+    solid = [g for g, kind in zip(problem.groups, problem.kinds) if kind == "solid"]
+    contact = [g for g, kind in zip(problem.groups, problem.kinds) if kind == "contact"]
+    assert solid and all(g.fused for g in solid)
+    assert contact and not any(g._kernel or g.foundation.use_kernel for g in contact)
+    problem.set_kernel("NUMBA")
+    assert all(g._kernel and g.foundation.use_kernel for g in contact)
+
+
 def context(problem, nlgeom=True):
     zero = {name: np.zeros(2) for name in problem.foundations}
     return StepContext(nlgeom=nlgeom, foundation_old=zero, foundation_new=dict(zero))

@@ -8,7 +8,8 @@ Sub-commands (run from the repository root, in the project's venv)::
     python tools/bench.py assembly [--nx 160 --ny 80]              # us per element / Gauss point
                                                                     # (NumPy and numba kernels)
     python tools/bench.py solvers [--sizes 20x10 40x20 ...]        # SPLU vs PARDISO crossover
-    python tools/bench.py startup                                   # lagamine-py --help
+    python tools/bench.py startup [--trees A B]                     # --help, check, run of
+                                                                    # the main job, whole process
     python tools/bench.py vtu FILE.vtu                              # VTU encodings: time, size,
                                                                     # does meshio read it
     python tools/bench.py report --json F [--png P]                 # markdown table + plot
@@ -138,14 +139,25 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         timers.cpu["reduce"] += time.process_time() - c
         return out
     FreeDofs.kff = kff
-    solvers = []
+    # what the solvers did, recorded as numbers: a list of the solver objects would keep the
+    # step-1 solver and its factor alive through step 2 (the peak memory then measured the
+    # harness: 3.67 GB instead of the run's 2.57 GB at 309k DOFs)
+    used: dict[str, int] = {}
+    analyses = {}
     orig_make = steps_mod.make_solver
 
     def make_solver(name):
         s = orig_make(name)
         timers.wrap(s, "factor", "factor")
         timers.wrap(s, "solve", "solve")
-        solvers.append(s)
+        inner_factor = s.factor
+
+        def factor(A):
+            inner_factor(A)
+            impl = getattr(s, "impl", s)
+            used[type(impl).__name__] = used.get(type(impl).__name__, 0) + 1
+            analyses[id(s)] = getattr(impl, "analyses", 0)
+        s.factor = factor
         return s
     steps_mod.make_solver = make_solver
 
@@ -162,6 +174,23 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     for w in writers:
         timers.wrap(w, "increment", "vtk" if type(w).__name__.lower().startswith("vtk")
                     else "other_output")
+    per_increment: list[tuple[int, int, int]] = []      # (step, solves, cut-backs)
+    failures: list[dict] = []
+    first = writers[0]
+    inner_first = first.increment
+
+    def counted(result):
+        per_increment.append((result.step, result.iterations, result.cutbacks))
+        inner_first(result)
+    first.increment = counted
+    inner_failed = first.failed_attempt
+
+    def failed(attempt):
+        failures.append({"step": attempt.step, "increment": attempt.increment,
+                         "dt": attempt.dt, "reason": attempt.reason,
+                         "solves": attempt.iterations})
+        inner_failed(attempt)
+    first.failed_attempt = failed
     if max_increments:
         vtk = writers[0]
         inner_inc = vtk.increment
@@ -196,7 +225,6 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     nel = int(sum(len(b.ids) for b in model.blocks))
     cgroups = [g for g, kd in zip(problem.groups, problem.kinds) if kd == "contact"]
     ncontact_gp = int(sum(g.dofs.shape[0] for g in cgroups))
-    impl = [getattr(s, "impl", s) for s in solvers]
     return {
         "nx": nx, "ny": ny, "elements": nel, "dofs": int(problem.ndof),
         "nnz": int(problem.pattern.nnz), "contact_elements": ncontact_gp,
@@ -205,8 +233,10 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         "bulk_evaluations": timers.n["bulk"],
         "solver": solver, "kernel": kernel,
         "fused_groups": int(sum(g.fused for g in problem.groups)),
-        "solver_used": sorted({type(s).__name__ for s in impl}),
-        "pardiso_analyses": int(sum(getattr(s, "analyses", 0) for s in impl)),
+        "solver_used": sorted(used), "pardiso_analyses": int(sum(analyses.values())),
+        "cutbacks": len(failures), "failed_attempts": failures,
+        "solves_per_increment": [n for _, n, _ in per_increment],
+        "increment_steps": [st for st, _, _ in per_increment],
         "t_deck": t_deck, "t_build": t_build, "t_run": t_run, "times": t,
         "cpu_run": cpu_run, "cpu_times": cpu, "load_average": os.getloadavg(),
         "cpus": os.cpu_count(),
@@ -451,10 +481,107 @@ def bench_solvers(sizes, repeat: int = 5) -> list[dict]:
     return rows
 
 
-def bench_startup(repeat: int = 5) -> float:
-    """Best wall time of ``lagamine-py --help`` in a fresh interpreter."""
-    cmd = [sys.executable, "-m", "lagamine_py", "--help"]
-    return _best(lambda: subprocess.run(cmd, check=True, capture_output=True), repeat)
+def bench_pardiso(sizes, repeat: int = 7) -> list[dict]:
+    """PARDISO's factorisation with and without the two-level algorithm (``iparm[23] = 10``) on
+    the press-slide tangent of :func:`bench_solvers`, and the symmetry test's cost against one
+    factorisation + solve.  The threads MKL uses are the process's (run it under
+    ``MKL_NUM_THREADS=1`` and ``=2``: ``pardiso-threads`` does both)."""
+    from lagamine_py.solver import linear
+
+    rows = []
+    for nx, ny in sizes:
+        A, b = _slide_tangent(nx, ny)
+        row = {"nx": nx, "ny": ny, "dofs": A.shape[0], "nnz": int(A.nnz),
+               "mkl_threads": os.environ.get("MKL_NUM_THREADS", "default")}
+        # both solvers analysed, then their factorisations alternated: a shared machine's
+        # load falls on both alike, and the ratio is taken per pair (median over the pairs)
+        solvers, x = {}, {}
+        for two in (False, True):
+            linear.PardisoSolver.TWO_LEVEL = two
+            solvers["two_level" if two else "default"] = s = linear.PardisoSolver()
+            s.factor(A)
+        times = {k: [] for k in solvers}
+        for _ in range(repeat):
+            for key, s in solvers.items():
+                times[key].append(_best(lambda: s.factor(A), 1))
+        for key, s in solvers.items():
+            row[f"{key}_factor_s"] = float(np.median(times[key]))
+            row[f"{key}_solve_s"] = _best(lambda: s.solve(b), repeat)
+            x[key] = s.solve(b)
+        row["two_level_over_default_pairs"] = [t2 / t1 for t1, t2 in
+                                               zip(times["default"], times["two_level"])]
+        s = solvers["two_level"]
+        row["symmetry_test_s"] = _best(lambda: s.is_symmetric(A), 5 * repeat)
+        d = A.data
+        row["whole_symmetry_test_s"] = _best(
+            lambda: np.abs(d - d[s._tperm]).max() <= 1e-13 * np.abs(d).max(), 5 * repeat)
+        for s in solvers.values():
+            s._release()
+        row["two_level_over_default"] = float(np.median(row["two_level_over_default_pairs"]))
+        row["symmetry_over_factor_solve"] = (row["symmetry_test_s"]
+                                             / (row["two_level_factor_s"] + row["two_level_solve_s"]))
+        row["rel_diff"] = float(np.abs(x["default"] - x["two_level"]).max()
+                                / np.abs(x["default"]).max())
+        row["load_average"] = os.getloadavg()
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return rows
+
+
+def _slide_tangent(nx: int, ny: int):
+    """The reduced press-slide tangent of :func:`bench_solvers` (contact pressed and sliding,
+    follower pressure: non-symmetric) and a right-hand side."""
+    from lagamine_py.deck import load_deck
+    from lagamine_py.elements.base import StepContext
+    from lagamine_py.solver.linear import FreeDofs
+    from lagamine_py.solver.problem import build_problem
+
+    with tempfile.TemporaryDirectory() as tmp:
+        deck = Path(tmp) / "d.dat"
+        deck.write_text(press_slide_deck(nx, ny))
+        model = load_deck(deck)
+    problem = build_problem(model)
+    n = len(model.coords)
+    u = np.zeros(2 * n)
+    bottom = np.flatnonzero(model.coords[:, 1] < 1e-9)
+    u[2 * bottom + 1] = -1e-4
+    u[2 * bottom] = 1e-3
+    problem.set_pressures({"PRESSED": 200.0})
+    still = {"FLAT": np.zeros(2)}
+    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, foundation_old=still,
+                      foundation_new=still)
+    ev = problem.evaluate(u, np.zeros(2 * n), problem.init_states(), ctx, True)
+    right = np.flatnonzero(model.coords[:, 0] > 40 - 1e-9)
+    A = FreeDofs(problem.pattern, 2 * right).kff(ev.data)
+    return A, np.random.default_rng(0).standard_normal(A.shape[0])
+
+
+def bench_startup(repeat: int = 5, trees: list[Path] | None = None) -> list[dict]:
+    """Best whole-process wall time of ``lagamine-py --help``, ``check`` and ``run`` of the main
+    job (``decks/press_slide.dat``), each in a fresh interpreter, with the byte code compiled
+    (``PYTHONDONTWRITEBYTECODE`` unset, one run beforehand) as after an install.  ``trees``:
+    source trees to compare (e.g. an export of an older commit), their runs interleaved so a
+    shared machine's load falls on all alike; default this one."""
+    trees = trees or [ROOT]
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    jobs = {"help": ["--help"], "check": ["check", str(DECK)]}
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs["run"] = ["run", str(DECK), "-q", "--overwrite", "-o", str(Path(tmp) / "out")]
+        best = {(t, j): np.inf for t in trees for j in jobs}
+        for i in range(repeat + 1):
+            for t in trees:
+                for j, argv in jobs.items():
+                    t0 = time.perf_counter()
+                    subprocess.run([sys.executable, "-m", "lagamine_py", *argv], check=True,
+                                   capture_output=True, cwd=tmp,
+                                   env=dict(env, PYTHONPATH=str(t)))
+                    if i:                                   # the first round compiles
+                        best[t, j] = min(best[t, j], time.perf_counter() - t0)
+        for t in trees:
+            rows.append({"tree": str(t), **{j: best[t, j] for j in jobs},
+                         "load_average": os.getloadavg()})
+    return rows
 
 
 # --------------------------------------------------------------------------------------------
@@ -619,7 +746,16 @@ def main(argv=None) -> int:
     p = sub.add_parser("solvers")
     p.add_argument("--sizes", nargs="+", type=_size,
                    default=[(20, 10), (40, 20), (60, 30), (80, 40), (120, 60)])
-    sub.add_parser("startup")
+    p = sub.add_parser("pardiso")
+    p.add_argument("--sizes", nargs="+", type=_size, default=[(80, 40), (160, 80), (320, 160)])
+    p.add_argument("--json", type=Path)
+    p = sub.add_parser("pardiso-threads")
+    p.add_argument("--sizes", nargs="+", default=["80x40", "160x80", "320x160"])
+    p.add_argument("--json", type=Path, default=Path("bench_pardiso.json"))
+    p = sub.add_parser("startup")
+    p.add_argument("--repeat", type=int, default=5)
+    p.add_argument("--trees", type=Path, nargs="+", help="source trees to compare (default: "
+                   "this one), e.g. `git archive COMMIT | tar -x -C DIR`")
     p = sub.add_parser("vtu")
     p.add_argument("file", type=Path, help="a body .vtu of a run (e.g. of `one 160 80 --keep DIR`)")
     p.add_argument("--repeat", type=int, default=12)
@@ -673,8 +809,25 @@ def main(argv=None) -> int:
             comp = row["compressor"] + (f" {row['level']}" if row["level"] else "")
             print(f"| {row['encoding']} | {comp} | {row['ms']:.1f} | {row['MB']:.2f} | {row['meshio']} |")
         return 0
+    if args.cmd == "pardiso":
+        rows = bench_pardiso(args.sizes)
+        if args.json:
+            args.json.write_text(json.dumps(rows, indent=1))
+        return
+    if args.cmd == "pardiso-threads":
+        rows = []
+        for threads in ("1", "2"):
+            with tempfile.TemporaryDirectory() as tmp:
+                out = Path(tmp) / "p.json"
+                subprocess.run([sys.executable, __file__, "pardiso", "--sizes", *args.sizes,
+                                "--json", str(out)], check=True,
+                               env=dict(os.environ, MKL_NUM_THREADS=threads))
+                rows += json.loads(out.read_text())
+        args.json.write_text(json.dumps(rows, indent=1))
+        return
     if args.cmd == "startup":
-        print(f"lagamine-py --help: {bench_startup():.3f} s (best of 5)")
+        for row in bench_startup(args.repeat, args.trees):
+            print(json.dumps(row))
         return 0
     if args.cmd == "report":
         results = []

@@ -18,8 +18,9 @@ first compile about ten seconds).  numba is optional (``pip install lagamine_py[
 it everything runs on the NumPy references.
 
 :func:`use_numba` is the one rule that chooses: ``*CONTROLS KERNEL=NUMPY`` never, ``NUMBA``
-always, ``AUTO`` from :data:`AUTO_NUMBA_ELEMENTS` solid elements (below that, loading numba costs
-more than it saves, and the small decks keep the NumPy reference's round-off).  A group then uses
+always, ``AUTO`` the solid kernel from :data:`AUTO_NUMBA_ELEMENTS` solid elements (below that,
+loading numba costs more than it saves, and the small decks keep the NumPy reference's
+round-off) and the contact kernel never (:data:`AUTO_CONTACT`).  A group then uses
 its kernel where it has one (a law or foundation the kernel reproduces).
 
 :data:`calls` counts the calls of each kernel: tests use it to prove that a fast path ran.
@@ -30,7 +31,7 @@ from collections import Counter
 from importlib import import_module
 from types import ModuleType
 
-__all__ = ["SETTINGS", "AUTO_NUMBA_ELEMENTS", "available", "module", "use_numba", "calls"]
+__all__ = ["SETTINGS", "AUTO_NUMBA_ELEMENTS", "AUTO_CONTACT", "available", "module", "use_numba", "calls"]
 
 SETTINGS = ("AUTO", "NUMPY", "NUMBA")
 #: KERNEL=AUTO uses numba from this many solid elements in the model.  Below it the kernels save
@@ -38,6 +39,11 @@ SETTINGS = ("AUTO", "NUMPY", "NUMBA")
 #: and the small decks keep the NumPy reference's round-off: press_slide's contact decisions turn
 #: on 1e-14 (19 increments and a cut-back instead of 16 with numba).
 AUTO_NUMBA_ELEMENTS = 2_000
+#: whether KERNEL=AUTO uses the contact kernel too.  It does not: its first compile is about
+#: half of a fresh install's compile time (11 of 22 s) and it saves 1-2 ms per Newton iteration
+#: (a contact Gauss point costs 1.2 us in NumPy, 0.25 us in numba; press-slide has 480 of them
+#: at 160x80), so it pays for its compile after thousands of iterations, never in one run.
+AUTO_CONTACT = False
 #: kernel name -> number of calls (incremented by the kernel modules' entry points)
 calls: Counter = Counter()
 
@@ -63,8 +69,10 @@ def available() -> bool:
     return module("solid") is not None
 
 
-def use_numba(setting: str, solid_elements: int) -> bool:
-    """Whether the kernel setting asks for the numba kernels on a model of ``solid_elements``.
+def use_numba(setting: str, solid_elements: int, kind: str = "solid") -> bool:
+    """Whether the kernel setting asks for the numba kernel of ``kind`` (``solid`` or
+    ``contact`` groups) on a model of ``solid_elements``.  ``AUTO`` never picks the contact
+    kernel (:data:`AUTO_CONTACT`).
 
     Raises KeyError for an unknown setting, or for ``NUMBA`` without numba installed."""
     setting = str(setting).upper()
@@ -77,4 +85,6 @@ def use_numba(setting: str, solid_elements: int) -> bool:
             raise KeyError("KERNEL=NUMBA needs the optional package numba "
                            "(pip install 'lagamine_py[fast]')")
         return True
+    if kind == "contact" and not AUTO_CONTACT:
+        return False
     return solid_elements >= AUTO_NUMBA_ELEMENTS and available()

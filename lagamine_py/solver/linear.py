@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import logging
 
 import numpy as np
 import scipy.sparse as sp
@@ -159,8 +160,8 @@ def _suspects(A: sp.csr_matrix) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=None)
-def _mkl_pardiso():
-    """MKL's ``pardiso`` function through ctypes, or None when MKL is not installed.
+def _mkl_library():
+    """MKL's runtime library (``mkl_rt``) through ctypes, or None when MKL is not installed.
 
     Looked up once per process, as pypardiso looks it up (``PYPARDISO_MKL_RT``, the library
     search path, then ``lib*/**/*mkl_rt*`` under the interpreter's prefix and the user base) --
@@ -187,11 +188,17 @@ def _mkl_pardiso():
             lib = ctypes.CDLL(path)
         except OSError:
             continue
-        pardiso = lib.pardiso
-        pardiso.restype = None
+        lib.pardiso.restype = None
+        lib.pardisoinit.restype = None
         pin_threads()
-        return pardiso
+        return lib
     return None
+
+
+def _mkl_pardiso():
+    """MKL's ``pardiso`` function, or None (see :func:`_mkl_library`)."""
+    lib = _mkl_library()
+    return None if lib is None else lib.pardiso
 
 
 def pardiso_available() -> bool:
@@ -215,6 +222,9 @@ class PardisoSolver(LinearSolver):
     """
 
     SYM_RTOL = 1e-13
+    SYM_CHUNK = 1 << 16          # entries per block of the symmetry test (early exit)
+    #: PARDISO's two-level factorisation (``iparm[23] = 10``): see :meth:`_set_iparm`
+    TWO_LEVEL = True
 
     @classmethod
     def unavailable(cls) -> str:
@@ -234,6 +244,7 @@ class PardisoSolver(LinearSolver):
         self.factorizations = 0
         self._struct = None                 # (indptr, indices) of the analysed structure
         self._ia = self._ja = None
+        self._asym_block = 0                # where the symmetry test last failed
 
     # -- structure ---------------------------------------------------------------------
     def _same_structure(self, A) -> bool:
@@ -274,12 +285,30 @@ class PardisoSolver(LinearSolver):
         self.mtype = 0                                   # force an analysis
 
     def is_symmetric(self, A) -> bool:
-        """A is symmetric to round-off (and its structure is)."""
+        """A is symmetric to round-off (and its structure is).
+
+        Tested block by block (``SYM_CHUNK`` entries), starting with the block where the last
+        matrix was found non-symmetric: a contact tangent is non-symmetric in the rows of the
+        contact DOFs only, which stay where they are from one iteration to the next, so the
+        usual non-symmetric verdict costs one block instead of three temporaries of ``nnz``
+        (the whole test was 11 % of the run at 309k DOFs).  A symmetric matrix is read whole."""
         if self._tperm is None:
             return False
         d = A.data
-        scale = np.abs(d).max() if d.size else 0.0
-        return bool(np.abs(d - d[self._tperm]).max(initial=0.0) <= self.SYM_RTOL * scale)
+        if not d.size:
+            return True
+        tol = self.SYM_RTOL * max(float(d.max()), -float(d.min()))
+        if not tol >= 0.0:                  # NaN entries: no verdict of symmetry
+            return False
+        n, step = d.size, self.SYM_CHUNK
+        starts = list(range(0, n, step))
+        first = min(self._asym_block, len(starts) - 1)
+        for a in starts[first:] + starts[:first]:
+            b = min(a + step, n)
+            if np.abs(d[a:b] - d[self._tperm[a:b]]).max() > tol:
+                self._asym_block = a // step
+                return False
+        return True
 
     # -- PARDISO calls -----------------------------------------------------------------
     def _pardiso(self, phase: int, data, ia, ja, b=None, x=None) -> None:
@@ -336,25 +365,35 @@ class PardisoSolver(LinearSolver):
             if mtype != self.mtype:
                 self._release()
                 self.mtype = mtype
-                self.iparm[:] = 0            # PARDISO's defaults for this matrix type
+                self._set_iparm()
                 self._pardiso(11, self._data, self._ia, self._ja)
                 self.analyses += 1
-                self._no_refinement()
             self._pardiso(22, self._data, self._ia, self._ja)
             self.factorizations += 1
         except _PardisoError as exc:
             self._release()
             raise SingularMatrixError(_singular_dofs(A), f"PARDISO: {exc}") from None
 
-    def _no_refinement(self) -> None:
-        """Keep the defaults the analysis filled in (``iparm[0] = 1``) but no iterative
-        refinement (``iparm[7] = 0``).  MKL's non-symmetric default is 2 steps on *every* solve,
-        i.e. three substitutions and two products: 2.4x the solve time (43.5 against 17.8 ms at
-        77k DOFs) for a residual of 7e-14 instead of 1.2e-13, which Newton does not need.  With
-        0, PARDISO still refines by itself when it had to perturb pivots, and :meth:`solve`'s
-        residual test stays the guard against a singular matrix."""
+    def _set_iparm(self) -> None:
+        """PARDISO's defaults for the matrix type (``pardisoinit``, then ``iparm[0] = 1``: the
+        values are ours), with two changes:
+
+        * no iterative refinement (``iparm[7] = 0``).  MKL's non-symmetric default is 2 steps
+          on *every* solve, i.e. three substitutions and two products: 2.4x the solve time
+          (43.5 against 17.8 ms at 77k DOFs) for a residual of 7e-14 instead of 1.2e-13, which
+          Newton does not need.  With 0, PARDISO still refines by itself when it had to perturb
+          pivots, and :meth:`solve`'s residual test stays the guard against a singular matrix;
+        * the two-level factorisation (``iparm[23] = 10``, which PARDISO reads only with
+          ``iparm[0] = 1``) when :attr:`TWO_LEVEL`: measured on the press-slide tangents
+          (``tools/bench.py pardiso``, docs/performance.md) with one and two threads."""
+        self.iparm[:] = 0
+        _mkl_library().pardisoinit(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
+                                   ctypes.byref(ctypes.c_int32(self.mtype)),
+                                   self.iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
         self.iparm[0] = 1
         self.iparm[7] = 0
+        if self.TWO_LEVEL:
+            self.iparm[23] = 10
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         b = np.array(b, dtype=np.float64, order="F")
@@ -380,14 +419,27 @@ class _PardisoError(RuntimeError):
         self.code = code
 
 
+#: what a run on SPLU above AUTO_PARDISO_DOFS says, once per process
+SLOW_SOLVER_NOTICE = ("{n} free DOFs factorised by SPLU: PARDISO is 3-4x faster on such tangents "
+                      "(docs/performance.md); install it with: pip install 'lagamine_py[pardiso]'")
+_told_slow = False
+
+
 class AutoSolver(LinearSolver):
-    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise."""
+    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise.
+
+    SPLU above that size says so once per process, with the command that installs PARDISO."""
 
     def __init__(self):
         self.impl: LinearSolver | None = None
 
     def factor(self, A: sp.csr_matrix) -> None:
-        want_pardiso = A.shape[0] > AUTO_PARDISO_DOFS and pardiso_available()
+        global _told_slow
+        large = A.shape[0] > AUTO_PARDISO_DOFS
+        want_pardiso = large and pardiso_available()
+        if large and not want_pardiso and not _told_slow:
+            _told_slow = True
+            logging.getLogger("lagamine_py.solver").warning(SLOW_SOLVER_NOTICE.format(n=A.shape[0]))
         cls = PardisoSolver if want_pardiso else SpluSolver
         if not isinstance(self.impl, cls):
             self.impl = cls()

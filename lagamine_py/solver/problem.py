@@ -80,10 +80,11 @@ class Problem:
         """Choose NumPy or the numba kernels for every group (:func:`lagamine_py.kernels.use_numba`:
         ``NUMPY``, ``NUMBA`` -- KeyError when numba is not installed -- or ``AUTO``); a group
         uses a kernel where it has one (a built-in law, the COULOMB law on a foundation)."""
-        on = kernels.use_numba(kernel, self.solid_elements())
+        n = self.solid_elements()
+        on = {kind: kernels.use_numba(kernel, n, kind) for kind in ("solid", "contact")}
         self.kernel = str(kernel).upper()
-        for g in self.groups:
-            g.use_kernels(on)
+        for g, kind in zip(self.groups, self.kinds):
+            g.use_kernels(on.get(kind, on["solid"]))
 
     def solid_elements(self) -> int:
         """Number of solid elements of the model."""

@@ -205,6 +205,7 @@ class Controller:
         self.nodal = 2 * len(model.node_ids)      # the rotations of reference nodes follow
         self.energy = EnergyAccount(n) if tracks_energy(model) else None
         self._previous = None             # (u, states) before the last commit (energy)
+        self._solvers: dict = {}          # the linear solver of the last step, by name
         self._last_energy: dict = {}      # the energy terms of the last hand-out
         self._advised: set[str] = set()   # the contact advice given (once per pair and what)
 
@@ -386,7 +387,11 @@ class Controller:
         except ParamError as exc:
             raise SetupError(f"step {si + 1} ({step.name}): *CONTROLS: {exc}") from None
         try:
-            solver = make_solver(controls["SOLVER"])
+            # one solver object per name for the whole run: a step whose free DOFs are those of
+            # the step before keeps PARDISO's analysis (the structure is compared by value)
+            name = str(controls["SOLVER"]).upper()
+            solver = self._solvers.get(name) or make_solver(controls["SOLVER"])
+            self._solvers = {name: solver}      # only one alive: its factor is the run's
             self.problem.set_kernel(controls["KERNEL"])
         except KeyError as exc:
             raise SetupError(f"step {si + 1} ({step.name}): {exc.args[0]}") from None

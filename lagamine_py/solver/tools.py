@@ -35,7 +35,6 @@ import dataclasses
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from ..core.status import SLIP, STICK
 from ..foundation import placed
@@ -159,6 +158,8 @@ def _bodies(problem) -> list[np.ndarray]:
     if not rows:
         return []
     r, c = np.concatenate(rows), np.concatenate(cols)
+    # imported here: only a singular tangent needs it, and it is 10 % of a small run's imports
+    from scipy.sparse.csgraph import connected_components
     graph = sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n))
     _, label = connected_components(graph, directed=False)
     used = np.zeros(n, bool)
