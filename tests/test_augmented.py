@@ -136,3 +136,18 @@ def test_an_augmentation_that_fails_keeps_the_converged_solve(tmp_path, monkeypa
     # the penalty answer: the penetration of KP = 1e8 alone
     r = _last(out)
     assert float(np.max(-r["gap"][r["status"] != "open"])) > 10 * 1e-4 * H_CONTACT
+
+
+def test_energy_check_is_refused_with_augmented(tmp_path, capsys):
+    """The multipliers' work is not in the balance: an energy check with METHOD=AUGMENTED would
+    report p^2/2KP as the stored energy, a wrong number; check and run refuse it (exit 2)."""
+    text = (ROOT / "decks" / "coulomb_block.dat").read_text()
+    text = text.replace("KP=2e6, KT=2e6, PHI=0.3, B=5",
+                        "KP=2e6, KT=2e6, PHI=0.3, B=5, METHOD=AUGMENTED, PTOL=1e-3", 1)
+    text = text.replace("*STEP, NAME=PRESS", "*CHECK, NAME=BALANCE, TYPE=ENERGY\n*STEP, NAME=PRESS", 1)
+    deck = tmp_path / "block.dat"
+    deck.write_text(text)
+    for cmd in (["check", str(deck)], ["run", str(deck), "-o", str(tmp_path / "out"), "-q"]):
+        assert main(cmd) == 2
+        assert "METHOD=AUGMENTED reports no stored (penalty) energy" in capsys.readouterr().err
+    assert not (tmp_path / "out" / "contact.csv").exists()

@@ -347,7 +347,13 @@ class Coulomb(ContactLaw):
     def stored_energy(self, state) -> np.ndarray:
         """``p^2 / (2 KP) + tau^2 / (2 KT)`` per unit area: the elastic energy of the normal and
         tangential penalty springs (``p = KP d``, ``tau`` = KT times the elastic part of the
-        tangential displacement); a frictionless law (``tau = 0``) stores none tangentially."""
+        tangential displacement); a frictionless law (``tau = 0``) stores none tangentially.
+        Not with METHOD=AUGMENTED: the multipliers' work is not a spring's energy, and
+        ``p^2 / 2 KP`` would put a wrong number in the balance (an energy check is refused)."""
+        if self.method == "AUGMENTED":
+            raise NotImplementedError(
+                "METHOD=AUGMENTED reports no stored (penalty) energy: the multipliers' work is not "
+                "accounted for; use METHOD=PENALTY for an energy check")
         p = np.asarray(state["p"], float)
         tau = np.asarray(state["tau"], float)
         return 0.5 * p * p / self.kp + 0.5 * tau * tau / self.kt
