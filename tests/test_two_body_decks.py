@@ -107,6 +107,29 @@ def test_two_body_coulomb_block(tmp_path, b):
     assert (np.asarray(cp.status) == 2).all()                          # all slip
 
 
+def test_change_contact_law_names_the_master(tmp_path):
+    """*CHANGE CONTACT LAW, SURFACE=, MASTER= (DECKS.md): pressed frictionless (T = 0 whatever the
+    push), then the pair's law becomes DRY: the pushed block holds T = phi P (Coulomb)."""
+    steps = PUSH.replace("*STEP, NAME=PUSH\n", "*STEP, NAME=PUSH\n*CHANGE CONTACT LAW, "
+                         "SURFACE=UP_BOTTOM, MASTER=LOW_TOP, LAW=DRY\n")
+    # frictionless, the upper block is held along x by its left edge while it is pressed
+    steps = steps.replace("LOW_LEFT, 1, 1, 0\n", "LOW_LEFT, 1, 1, 0\nUP_LEFT, 1, 1, 0\n", 1)
+    path = _deck(tmp_path, nxl=3, nxu=8, x0=5, lx=20, steps=steps)
+    text = path.read_text().replace("LAW=DRY\n*STEP", "LAW=FREE\n*STEP", 1)
+    text = text.replace("*CONTACT LAW, NAME=DRY", "*CONTACT LAW, NAME=FREE, TYPE=COULOMB\n"
+                        "KP=1e6, KT=1e6, PHI=0\n*CONTACT LAW, NAME=DRY", 1)
+    path.write_text(text)
+    _, cap, _ = run_deck(path, tmp_path / "out")
+    press = [r for r in cap.results if r.step == 1][-1]
+    assert abs(press.contacts[0].T) <= 1e-9 * 2000
+    cp = cap.results[-1].contacts[0]
+    assert abs(cp.T) == pytest.approx(0.3 * cp.P, rel=1e-6)
+    wrong = path.read_text().replace("MASTER=LOW_TOP, LAW=DRY", "MASTER=LOW_BOTTOM, LAW=DRY")
+    path.write_text(wrong)
+    with pytest.raises(DeckError, match="MASTER=LOW_BOTTOM"):
+        load_deck(path)
+
+
 def test_hertz_two_cylinders(tmp_path):
     """decks/hertz_two_body.dat: steel on aluminium cylinders; a and p0 against Hertz with the
     pair's E* and R (Johnson 4.2) within 1 % (the HERTZ check of the deck)."""

@@ -1409,7 +1409,12 @@ class _Builder(ImportMixin):
         self.step.motions.append(FoundationMotion(name, dx, dy, params["AMPLITUDE"], blk.where, angle))
 
     def _kw_change_contact_law(self, blk, params, data):
-        surface, foundation, law = params["SURFACE"], params["FOUNDATION"], params["LAW"]
+        surface, law = params["SURFACE"], params["LAW"]
+        if (params["FOUNDATION"] is None) == (params["MASTER"] is None):
+            self.pb.at(blk, "give one of FOUNDATION= and MASTER= (the other side of the pair)")
+            return
+        key = "FOUNDATION" if params["FOUNDATION"] is not None else "MASTER"
+        foundation = params[key]
         if law not in self.m.contact_laws:
             self._missing(blk.file, blk.line, blk.keyword, "CONTACT LAW", law, self.m.contact_laws,
                           f"LAW={law}: ")
@@ -1417,7 +1422,7 @@ class _Builder(ImportMixin):
         pairs = [f"{c.surface}->{c.target}" for c in self.m.contacts]
         pair = f"{surface}->{foundation}"
         if pair not in pairs:
-            self.pb.at(blk, f"no contact pair {pair} (SURFACE={surface}, FOUNDATION={foundation}): "
+            self.pb.at(blk, f"no contact pair {pair} (SURFACE={surface}, {key}={foundation}): "
                             f"the *CONTACT pairs are {', '.join(pairs) or 'none'}"
                             f"{did_you_mean(pair, pairs)}")
             return

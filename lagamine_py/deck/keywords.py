@@ -232,10 +232,13 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
                      "(radians, counter-clockwise; default 0)"),
             doc="rigid motion of a foundation reached at the step end (totals from where the deck puts "
                 "it); on a foundation with a REF NODE, *BOUNDARY on its DOFs 1, 2, 6"),
-    Keyword("CHANGE CONTACT LAW", "step", (_name("SURFACE", True), _name("FOUNDATION", True),
+    Keyword("CHANGE CONTACT LAW", "step", (_name("SURFACE", True),
+                                          _name("FOUNDATION", doc="the pair's foundation (or MASTER=)"),
+                                          _name("MASTER", doc="the pair's master surface (two "
+                                                              "deformable bodies)"),
                                           _name("LAW", True)),
-            doc="the contact pair SURFACE->FOUNDATION uses the contact law LAW from this step on; its "
-                "state (p, tau, the slip lambda, the dissipation) carries over"),
+            doc="the contact pair SURFACE->FOUNDATION (or ->MASTER) uses the contact law LAW from this "
+                "step on; its state (p, tau, the slip lambda, the dissipation) carries over"),
     Keyword("CONTACT STABILIZATION", "step",
             (Param("FACTOR", float, 1e-4, gt=0.0,
                    doc="damping coefficient as a fraction of KP times the step time"),
