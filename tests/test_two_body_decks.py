@@ -45,9 +45,12 @@ def _deck(tmp_path, name="d.dat", low="Q8PE", nxl=3, nxu=6, x0=0, lx=30, b=0, ta
     ("LAW2=X", "one of FOUNDATION="),
     ("FOUNDATION=F, SEARCH=2", None),
     ("MASTER=LOW_TOP, GAUSS=LINEAR", "GAUSS=LINEAR is not available with MASTER="),
+    ("MASTER=LOW_TOP", "is also the name of a *FOUNDATION"),
 ])
 def test_master_is_validated(tmp_path, target, message):
     text = "*FOUNDATION, NAME=F\n-1, 0\n10, 0\n40, 0\n" if "FOUNDATION=F" in target else ""
+    if message and "FOUNDATION" in message:          # a foundation named like the master
+        text = "*FOUNDATION, NAME=LOW_TOP\n-1, -5\n10, -5\n40, -5\n"
     path = tmp_path / "d.dat"
     body = BLOCKS.format(low="Q8PE", nxl=3, nxu=6, x0=0, lx=30, b=0, target=target)
     path.write_text(text + body.replace(", LAW2=X", "") + PRESS)

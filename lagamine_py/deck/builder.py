@@ -991,6 +991,11 @@ class _Builder(ImportMixin):
         for cs in self.m.contacts:
             if cs.master is None:
                 continue
+            if cs.master in self.m.foundations:
+                # pairs, tool forces and law changes are keyed SURFACE->name: one name, one thing
+                self.pb.at(cs.where, f"MASTER={cs.master} is also the name of a *FOUNDATION: rename "
+                                     f"one (pairs and tool forces are keyed by that name)")
+                continue
             try:
                 rows, elements, faces = surface_faces(self.m, cs.master)
                 _, slave_el, slave_faces = surface_faces(self.m, cs.surface)
