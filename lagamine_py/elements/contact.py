@@ -582,6 +582,34 @@ class ContactGroup(Group):
         return int(min(max(int(np.ceil(angle / tol - 1e-9)), 1), cap))
 
     # ----------------------------------------------------------------- compute
+    @staticmethod
+    def _hold_open(new, st, D, frozen_open):
+        """The state of a sub-interval with the points the flip-flop control holds OPEN put back:
+        no traction, their history (lam, slip, vp, dissip) that of ``st``, no tangent rows."""
+        if frozen_open is None or not frozen_open.any():
+            return new
+        new = dict(new)
+        for key in ("p", "tau"):
+            new[key] = np.where(frozen_open, 0.0, new[key])
+        for key in ("lam", "slip", "vp", "dissip"):
+            if key in new and key in st:
+                new[key] = np.where(frozen_open, st[key], new[key])
+        status = np.asarray(new["status"])
+        new["status"] = np.where(frozen_open, OPEN, status).astype(status.dtype)
+        for key in _OUT:
+            if D[key] is not None:
+                D[key][frozen_open] = 0.0
+        return new
+
+    def _detached(self, st, state, D, tangent):
+        """``st`` sharing no array with the committed ``state`` (a law may pass some through),
+        and zero p and tau rows in ``D`` where no sub-interval wrote any."""
+        st = {k: (v.copy() if v is state.get(k) else v) for k, v in st.items()}
+        for key in ("p", "tau"):
+            if tangent and D[key] is None:
+                D[key] = np.zeros((self.ng, self.nw))
+        return st
+
     def _integrate(self, u_new, u_old, state, ctx, tangent, stab=False):
         """Run the law over the sub-intervals; returns the end state, D p, D tau (g, nw), P, t
         (g, 2) of the end configuration (``_axes_t`` of u_new, reused by ``compute``) and
@@ -650,25 +678,9 @@ class ContactGroup(Group):
                     Ddv_sum = Ddv.copy() if Ddv_sum is None else Ddv_sum + Ddv
                 Ddu = Dd_k if Dd_prev is None else Dd_k - Dd_prev
                 D = self._chain(tan, D, Ddu, Dd_prev, Ddv, lam=k < nsub)
-            if frozen_open is not None and frozen_open.any():
-                new = dict(new)
-                for key in ("p", "tau"):
-                    new[key] = np.where(frozen_open, 0.0, new[key])
-                for key in ("lam", "slip", "vp", "dissip"):
-                    if key in new and key in st:
-                        new[key] = np.where(frozen_open, st[key], new[key])
-                status = np.asarray(new["status"])
-                new["status"] = np.where(frozen_open, OPEN, status).astype(status.dtype)
-                for key in _OUT:
-                    if D[key] is not None:
-                        D[key][frozen_open] = 0.0
-            st = new
+            st = self._hold_open(new, st, D, frozen_open)
             d_prev, Dd_prev = d_k, Dd_k
-        # the result never shares arrays with the committed state (a law may pass some through)
-        st = {k: (v.copy() if v is state.get(k) else v) for k, v in st.items()}
-        for key in ("p", "tau"):
-            if tangent and D[key] is None:
-                D[key] = np.zeros((self.ng, self.nw))
+        st = self._detached(st, state, D, tangent)
         return st, D, P_end, t_end, (d_start, d_end, Dd_end, dv_sum, Ddv_sum)
 
     def _chain(self, tan, D, Ddu, Dd_old, Ddv, lam=True):

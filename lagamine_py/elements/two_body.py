@@ -348,24 +348,9 @@ class TwoBodyGroup(ContactGroup):
                     Ddv_sum = Ddv.copy() if Ddv_sum is None else Ddv_sum + Ddv
                 Ddu = Dd_k if Dd_prev is None else Dd_k - Dd_prev
                 D = self._chain(tan, D, Ddu, Dd_prev, Ddv, lam=k < nsub)
-            if frozen_open is not None and frozen_open.any():
-                new = dict(new)
-                for key in ("p", "tau"):
-                    new[key] = np.where(frozen_open, 0.0, new[key])
-                for key in ("lam", "slip", "vp", "dissip"):
-                    if key in new and key in st:
-                        new[key] = np.where(frozen_open, st[key], new[key])
-                status = np.asarray(new["status"])
-                new["status"] = np.where(frozen_open, OPEN, status).astype(status.dtype)
-                for key in _OUT:
-                    if D[key] is not None:
-                        D[key][frozen_open] = 0.0
-            st = new
+            st = self._hold_open(new, st, D, frozen_open)
             d_prev, Dd_prev = d_k, Dd_k
-        st = {k: (v.copy() if v is state.get(k) else v) for k, v in st.items()}
-        for key in ("p", "tau"):
-            if tangent and D[key] is None:
-                D[key] = np.zeros((self.ng, self.nw))
+        st = self._detached(st, state, D, tangent)
         return st, D, P_end, t_end, pr, Ds, (d_start, d_end, Dd_end, dv_sum, Ddv_sum)
 
     def compute(self, u_new, u_old, state, ctx: StepContext, tangent: bool = True) -> GroupResult:
