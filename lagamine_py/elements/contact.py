@@ -610,6 +610,28 @@ class ContactGroup(Group):
                 D[key] = np.zeros((self.ng, self.nw))
         return st
 
+    def _point_record(self, state, P, p, tau, gap, status, dA, F, M) -> ContactPoints:
+        """The output record of the points (:class:`ContactPoints`): ``P`` positions, ``p``,
+        ``tau``, ``gap``, ``status`` per point, ``dA`` their areas, ``F`` and ``M`` the resultant
+        force and moment on the other side of the pair."""
+        try:
+            stored = float(np.sum(np.asarray(self.law.stored_energy(state), float) * dA))
+        except NotImplementedError:          # the law keeps no account of it (energy: NaN)
+            stored = float("nan")
+        closed = (status == STICK) | (status == SLIP)
+        return ContactPoints(
+            name=self.name, element=np.repeat(self.ids, self.nq),
+            face=np.repeat(self.faces, self.nq), gauss=np.tile(np.arange(1, self.nq + 1), self.nf),
+            x=P, p=p, tau=tau, gap=gap, slip=np.asarray(state["slip"], float),
+            lam=np.asarray(state["lam"], float), status=status,
+            P=float(np.sum(p * dA)), T=float(np.sum(tau * dA)),
+            A=float(np.sum(dA[closed])), F=F, x0=self._P0.copy(),
+            vp=np.asarray(state["vp"], float), dvp=np.asarray(state["dvp"], float),
+            dissip=np.asarray(state["dissip"], float),
+            E=float(np.sum(np.asarray(state["energy"], float))), M=M, stored=stored,
+            stabilisation=float(np.sum(np.asarray(state.get("stab", 0.0), float))),
+            friction=float(np.sum(np.asarray(state.get("fdis", 0.0), float))))
+
     def _integrate(self, u_new, u_old, state, ctx, tangent, stab=False):
         """Run the law over the sub-intervals; returns the end state, D p, D tau (g, nw), P, t
         (g, 2) of the end configuration (``_axes_t`` of u_new, reused by ``compute``) and
@@ -950,20 +972,4 @@ class ContactGroup(Group):
         arm = Pv - (self.foundation.centre + c)
         Fg = vec * wt[:, None]
         M = -float(np.sum(arm[:, 0] * Fg[:, 1] - arm[:, 1] * Fg[:, 0]))
-        try:
-            stored = float(np.sum(np.asarray(self.law.stored_energy(state), float) * dA))
-        except NotImplementedError:
-            stored = float("nan")
-        closed = (status == STICK) | (status == SLIP)
-        return ContactPoints(
-            name=self.name, element=np.repeat(self.ids, self.nq),
-            face=np.repeat(self.faces, self.nq), gauss=np.tile(np.arange(1, self.nq + 1), self.nf),
-            x=P, p=p, tau=tau, gap=gap, slip=np.asarray(state["slip"], float),
-            lam=np.asarray(state["lam"], float), status=status,
-            P=float(np.sum(p * dA)), T=float(np.sum(tau * dA)),
-            A=float(np.sum(dA[closed])), F=F, x0=self._P0.copy(),
-            vp=np.asarray(state["vp"], float), dvp=np.asarray(state["dvp"], float),
-            dissip=np.asarray(state["dissip"], float),
-            E=float(np.sum(np.asarray(state["energy"], float))), M=M, stored=stored,
-            stabilisation=float(np.sum(np.asarray(state.get("stab", 0.0), float))),
-            friction=float(np.sum(np.asarray(state.get("fdis", 0.0), float))))
+        return self._point_record(state, P, p, tau, gap, status, dA, F, M)

@@ -55,10 +55,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.errors import CutbackRequest
-from ..core.status import NONE, OPEN, SLIP, STICK
+from ..core.status import NONE, OPEN
 from ..core.tensors import RIGHT as _R, left_normal, right_normal
 from ..laws.base import ContactLaw
-from .base import ContactPoints, GroupResult, StepContext
+from .base import GroupResult, StepContext
 from .contact import FAR, ContactGroup
 
 __all__ = ["MasterChain", "TwoBodyGroup", "master_shape"]
@@ -445,20 +445,4 @@ class TwoBodyGroup(ContactGroup):
         tf = tau + np.asarray(state.get("ts", 0.0), float)
         vec = pf[:, None] * right_normal(t) - tf[:, None] * t
         Fres = -np.einsum("gi,g->i", vec, wt)
-        try:
-            stored = float(np.sum(np.asarray(self.law.stored_energy(state), float) * dA))
-        except NotImplementedError:
-            stored = float("nan")
-        closed = (status == STICK) | (status == SLIP)
-        return ContactPoints(
-            name=self.name, element=np.repeat(self.ids, self.nq),
-            face=np.repeat(self.faces, self.nq), gauss=np.tile(np.arange(1, self.nq + 1), self.nf),
-            x=P, p=p, tau=tau, gap=gap, slip=np.asarray(state["slip"], float),
-            lam=np.asarray(state["lam"], float), status=status,
-            P=float(np.sum(p * dA)), T=float(np.sum(tau * dA)),
-            A=float(np.sum(dA[closed])), F=Fres, x0=self._P0.copy(),
-            vp=np.asarray(state["vp"], float), dvp=np.asarray(state["dvp"], float),
-            dissip=np.asarray(state["dissip"], float),
-            E=float(np.sum(np.asarray(state["energy"], float))), M=0.0, stored=stored,
-            stabilisation=float(np.sum(np.asarray(state.get("stab", 0.0), float))),
-            friction=float(np.sum(np.asarray(state.get("fdis", 0.0), float))))
+        return self._point_record(state, P, p, tau, gap, status, dA, Fres, 0.0)
