@@ -198,20 +198,27 @@ def hertz_meshes() -> None:
         q4_split_mesh(src, mesh_dir / f"cylinder_quarter_{tag}_q4.inp")
 
 
-def hertz_error(row: dict) -> dict:
-    """Fit a, p0 to the last increment's contact pressures; compare with Hertz at the reached
-    force P = 2 x (quarter's total normal force)."""
-    run = Path(row["dir"])
+def last_pressures(run: Path) -> tuple | None:
+    """``(x, p, P)`` of a Hertz quarter's last increment: the contact points' x and p, and the
+    force P = 2 x (the quarter's total normal force); None when the tables cannot be read."""
     try:
         pts = read_table(run / "contact.csv")
         tot = read_table(run / "contact_totals.csv")
     except (OSError, ValueError):
-        return {"error": math.nan}
+        return None
     inc = np.asarray(pts["increment"], float) + 1e6 * np.asarray(pts["step"], float)
     last = inc == inc.max()
-    x = np.asarray(pts["x"], float)[last]
-    p = np.asarray(pts["p"], float)[last]
     P = 2.0 * abs(float(np.asarray(tot["P"], float)[-1]))
+    return np.asarray(pts["x"], float)[last], np.asarray(pts["p"], float)[last], P
+
+
+def hertz_error(row: dict) -> dict:
+    """Fit a, p0 to the last increment's contact pressures; compare with Hertz at the reached
+    force P = 2 x (quarter's total normal force)."""
+    found = last_pressures(Path(row["dir"]))
+    if found is None:
+        return {"error": math.nan}
+    x, p, P = found
     a, p0 = fit_hertz(x, p)
     a_h, p0_h = hertz_closed_form(P, HERTZ_R, HERTZ_E, HERTZ_NU)
     ea, ep = abs(a / a_h - 1.0), abs(p0 / p0_h - 1.0)
@@ -277,18 +284,13 @@ def classic_error(row: dict) -> dict:
     """a and p0 fitted to the last contact pressures against the closed form at P = 1000 N/mm
     (a = 0.525232 mm, p0 = 1212.07 MPa); the run's own force P (2 x the quarter's) is reported,
     it is 1000 to round-off (force control)."""
-    run = Path(row["dir"])
-    try:
-        pts = read_table(run / "contact.csv")
-        tot = read_table(run / "contact_totals.csv")
-    except (OSError, ValueError):
+    found = last_pressures(Path(row["dir"]))
+    if found is None:
         return {"error": math.nan}
-    inc = np.asarray(pts["increment"], float) + 1e6 * np.asarray(pts["step"], float)
-    last = inc == inc.max()
-    a, p0 = fit_hertz(np.asarray(pts["x"], float)[last], np.asarray(pts["p"], float)[last])
+    x, p, P = found
+    a, p0 = fit_hertz(x, p)
     a_h, p0_h = hertz_closed_form(CLASSIC["P"], CLASSIC["R"], CLASSIC["E"], CLASSIC["NU"])
     ea, ep = a / a_h - 1.0, p0 / p0_h - 1.0
-    P = 2.0 * abs(float(np.asarray(tot["P"], float)[-1]))
     return {"error": max(abs(ea), abs(ep)), "err_a": ea, "err_p0": ep, "P": P, "a": a, "p0": p0}
 
 
