@@ -434,32 +434,11 @@ def bench_solvers(sizes, repeat: int = 5) -> list[dict]:
     """Factor + solve times of SPLU and PARDISO on the press-slide tangent at each size
     (tangent of the first iteration of the slide: contact, friction, non-symmetric), with the
     PARDISO analysis done once beforehand (as in a Newton loop)."""
-    from lagamine_py.deck import load_deck
-    from lagamine_py.elements.base import StepContext
-    from lagamine_py.solver.linear import FreeDofs, PardisoSolver, SpluSolver, pardiso_available
-    from lagamine_py.solver.problem import build_problem
+    from lagamine_py.solver.linear import PardisoSolver, SpluSolver, pardiso_available
 
     rows = []
     for nx, ny in sizes:
-        with tempfile.TemporaryDirectory() as tmp:
-            deck = Path(tmp) / "d.dat"
-            deck.write_text(press_slide_deck(nx, ny))
-            model = load_deck(deck)
-        problem = build_problem(model)
-        n = len(model.coords)
-        u = np.zeros(2 * n)
-        bottom = np.flatnonzero(model.coords[:, 1] < 1e-9)
-        u[2 * bottom + 1] = -1e-4
-        u[2 * bottom] = 1e-3
-        problem.set_pressures({"PRESSED": 200.0})
-        still = {"FLAT": np.zeros(2)}
-        ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0,
-                          foundation_old=still, foundation_new=still)
-        ev = problem.evaluate(u, np.zeros(2 * n), problem.init_states(), ctx, True)
-        right = np.flatnonzero(model.coords[:, 0] > 40 - 1e-9)
-        free = FreeDofs(problem.pattern, 2 * right)
-        A = free.kff(ev.data)
-        b = np.random.default_rng(0).standard_normal(A.shape[0])
+        A, b = _slide_tangent(nx, ny)
         row = {"nx": nx, "ny": ny, "dofs": A.shape[0], "nnz": int(A.nnz)}
         cands = [("SPLU", SpluSolver)]
         if pardiso_available():
