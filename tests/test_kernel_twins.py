@@ -61,7 +61,7 @@ from lagamine_py.core.errors import ReturnMappingError           # noqa: E402
 from lagamine_py.core.status import OPEN, SLIP, STICK            # noqa: E402
 from lagamine_py.core.tensors import left_normal, von_mises      # noqa: E402
 from lagamine_py.elements.base import StepContext                # noqa: E402
-from lagamine_py.elements.contact import ContactGroup, _de_u_dt  # noqa: E402
+from lagamine_py.elements.contact import ContactGroup, normal_axis  # noqa: E402
 from lagamine_py.elements.solid import SolidElement              # noqa: E402
 from lagamine_py.elements.structured import rectangle            # noqa: E402
 from lagamine_py.foundation import Foundation                    # noqa: E402
@@ -1059,7 +1059,7 @@ def _contact_branches(cfg, ref_group, rec, u_new, c_new, step):
               else "failure: " + ref["failure"]] += 1
         x = ref_group._face_x(u_new)
         P, t = ref_group._axes_t(x, cfg.nlgeom)
-        e_u, _ = _de_u_dt(t)
+        e_u, _ = normal_axis(t)
         pr = ref_group._project(P, e_u, (c_new[:2], c_new[2] if len(c_new) > 2 else 0.0))
         s = np.nan_to_num(pr.s)
         c["line misses (d = -FAR)"] += int((~pr.found).sum())

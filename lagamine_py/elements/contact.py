@@ -180,7 +180,7 @@ def _unit(t):
     return n, t / np.where(n > 0, n, 1.0)[:, None]
 
 
-def _de_u_dt(t):
+def normal_axis(t):
     """e_u (g, 2) and d e_u / d t (g, 2, 2) for e_u = R t / |t|."""
     n, th = _unit(t)
     e_u = _right(th)
@@ -219,7 +219,7 @@ def _placement_key(place) -> np.ndarray:
     return np.array([c[0], c[1], theta])
 
 
-def _de_v_dt(t):
+def tangent_axis(t):
     """e_v (g, 2) and d e_v / d t (g, 2, 2) for e_v = -t / |t|."""
     n, th = _unit(t)
     D = -(_I2[None] - th[:, :, None] * th[:, None, :]) / n[:, None, None]
@@ -498,7 +498,7 @@ class ContactGroup(Group):
     def _penetration_at(self, P, t, place, scale, geo):
         """:meth:`_penetration` from P (g, 2) and the axes' tangent t (g, 2)."""
         place = _as_placement(place)
-        e_u, de = _de_u_dt(t)
+        e_u, de = normal_axis(t)
         pr = self._project(P, e_u, place)
         d = np.where(pr.found, pr.d, -FAR)
         d = np.where(np.abs(d) <= self._touch_tol, 0.0, d)
@@ -676,7 +676,7 @@ class ContactGroup(Group):
                 Dd_k = a_k * Dd_end
             a_th = (k - 1 + theta) / nsub
             t_th = self._interp(self.dN, xo + a_th * dx) if geo else self._t0
-            e_v, dev = _de_v_dt(t_th)
+            e_v, dev = tangent_axis(t_th)
             dv = e_v[:, 0] * rel[:, 0] + e_v[:, 1] * rel[:, 1]
             du = d_k - d_prev
             new, tan = self.law.update(st, d_k, du, dv, frozen=frozen)
@@ -943,7 +943,7 @@ class ContactGroup(Group):
         geo = bool(ctx.nlgeom)
         c, theta = self._placement(ctx, "new")
         P, t = self._axes_t(self._face_x(u_new), geo)
-        e_u, _ = _de_u_dt(t)
+        e_u, _ = normal_axis(t)
         pr = self._project(P, e_u, (c, theta))
         dA = self._areas(P, t, geo, self._face_x(u_new))
         p = np.asarray(state["p"], float)

@@ -56,10 +56,10 @@ import numpy as np
 
 from ..core.errors import CutbackRequest
 from ..core.status import NONE, OPEN
-from ..core.tensors import RIGHT as _R, left_normal, right_normal
+from ..core.tensors import left_normal, right_normal
 from ..laws.base import ContactLaw
 from .base import GroupResult, StepContext
-from .contact import FAR, ContactGroup
+from .contact import FAR, ContactGroup, normal_axis, tangent_axis
 
 __all__ = ["MasterChain", "TwoBodyGroup", "master_shape"]
 
@@ -72,23 +72,6 @@ def master_shape(s):
     N = np.stack([0.5 * s * (s - 1.0), 0.5 * s * (s + 1.0), 1.0 - s * s], axis=-1)
     dN = np.stack([s - 0.5, s + 0.5, -2.0 * s], axis=-1)
     return N, dN
-
-
-def _unit_normal(t):
-    """e_u (g, 2) = R t / |t| and d e_u / d t (g, 2, 2)."""
-    n = np.sqrt((t * t).sum(axis=-1))
-    th = t / np.where(n > 0, n, 1.0)[:, None]
-    e_u = right_normal(th)
-    D = (_R[None] - e_u[:, :, None] * th[:, None, :]) / n[:, None, None]
-    return e_u, D
-
-
-def _tangent_axis(t):
-    """e_v (g, 2) = -t / |t| and d e_v / d t (g, 2, 2)."""
-    n = np.sqrt((t * t).sum(axis=-1))
-    th = t / np.where(n > 0, n, 1.0)[:, None]
-    D = -(np.eye(2)[None] - th[:, :, None] * th[:, None, :]) / n[:, None, None]
-    return -th, D
 
 
 class MasterChain:
@@ -237,7 +220,7 @@ class TwoBodyGroup(ContactGroup):
     def _master_project(self, P, t, X, geo, tangent):
         """d (g,) (``-FAR`` where not found, snapped to 0 within round-off), the projection and,
         when ``tangent``, D d and D s (g, nw) with respect to the face's DOF vector."""
-        e_u, de = _unit_normal(t)
+        e_u, de = normal_axis(t)
         cand = self.window[self._gface]
         pr = self.master.project(P, e_u, X, cand)
         found = pr["found"]
@@ -294,7 +277,7 @@ class TwoBodyGroup(ContactGroup):
         lost = np.flatnonzero(~found)
         if not len(lost):
             return 0
-        e_u, _ = _unit_normal(t[lost])
+        e_u, _ = normal_axis(t[lost])
         allf = np.broadcast_to(np.arange(len(self.master.face_nodes)), (len(lost), len(X)))
         pr = self.master.project(P[lost], e_u, X, np.ascontiguousarray(allf))
         return int(np.sum(pr["found"] & (pr["d"] > -0.5 * self.search)))
@@ -333,7 +316,7 @@ class TwoBodyGroup(ContactGroup):
                 Dd_k = None if Dd_end is None else a_k * Dd_end
             a_th = (k - 1 + theta) / nsub
             t_th = self._interp(self.dN, xo + a_th * dx) if geo else self._t0
-            e_v, dev = _tangent_axis(t_th)
+            e_v, dev = tangent_axis(t_th)
             dv = (e_v * rel).sum(-1)
             new, tan = self.law.update(st, d_k, d_k - d_prev, dv, frozen=frozen)
             dv_sum = dv_sum + dv
@@ -427,7 +410,7 @@ class TwoBodyGroup(ContactGroup):
         P, t = self._axes_t(self._face_x(u_new), geo)
         X = self.master.positions(u_new)
         allf = np.broadcast_to(np.arange(len(X)), (self.ng, len(X)))
-        e_u, _ = _unit_normal(t)
+        e_u, _ = normal_axis(t)
         pr = self.master.project(P, e_u, X, np.ascontiguousarray(allf))
         found = pr["found"]
         wt, _ = self._weights(P, geo)
