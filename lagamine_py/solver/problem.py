@@ -276,8 +276,6 @@ def build_problem(model) -> Problem:
                                        surface_faces(model, master.name)[0], master.name, claw,
                                        cs.gauss, model.axisymmetric,
                                        _surface_thickness(model, surf, lookup), cs.search))
-            scales[len(groups) - 1] = face_scales(groups[-1], model, laws, lookup)
-            # the faces touching the master are judged when they come into contact (Controller)
         else:
             fname = _key(model.foundations, cs.foundation)
             name = f"{surf.name}->{fname}"
@@ -285,9 +283,11 @@ def build_problem(model) -> Problem:
                                        foundations[fname], fname, claw, cs.gauss,
                                        model.axisymmetric, _surface_thickness(model, surf, lookup),
                                        tools.get(fname)))
-            scales[len(groups) - 1] = face_scales(groups[-1], model, laws, lookup)
-            # at the start: the faces already touching (a body meshed on the foundation); the
-            # others when they come into contact (Controller, at the end of each step)
+        scales[len(groups) - 1] = face_scales(groups[-1], model, laws, lookup)
+        # the penalty advice: at the start, the faces already touching a foundation (a body
+        # meshed on it); the others, and two-body pairs, when they come into contact (Controller,
+        # at the end of each step)
+        if cs.master is None:
             touching = (groups[-1].start_penetration() >= 0).reshape(groups[-1].nf, -1).any(axis=1)
             advice.extend(penalty_advice(name, claw, scales[len(groups) - 1][touching],
                                          "touching the foundation at the start"))
