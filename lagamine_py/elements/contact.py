@@ -226,6 +226,16 @@ def tangent_axis(t):
     return -th, D
 
 
+def sub_penetration(k, nsub, d_start, d_end, Dd_end):
+    """The penetration at the end of sub-interval ``k`` of ``nsub`` and its derivative in
+    ``u_new``: linear from ``d_start`` (fixed with respect to ``u_new``) to ``d_end``."""
+    if nsub == 1:
+        return d_end, Dd_end
+    a_k = k / nsub
+    return (d_start + a_k * (d_end - d_start),
+            None if Dd_end is None else a_k * Dd_end)
+
+
 class ContactGroup(Group):
     """Contact elements on the faces of one surface against one rigid foundation.
 
@@ -668,12 +678,7 @@ class ContactGroup(Group):
                 rel = rel - (q - arm) / nsub
         dv_sum, Ddv_sum = 0.0, None
         for k in range(1, nsub + 1):
-            a_k = k / nsub
-            if nsub == 1:
-                d_k, Dd_k = d_end, Dd_end
-            else:
-                d_k = d_start + a_k * (d_end - d_start)
-                Dd_k = a_k * Dd_end
+            d_k, Dd_k = sub_penetration(k, nsub, d_start, d_end, Dd_end)
             a_th = (k - 1 + theta) / nsub
             t_th = self._interp(self.dN, xo + a_th * dx) if geo else self._t0
             e_v, dev = tangent_axis(t_th)

@@ -59,7 +59,7 @@ from ..core.status import NONE, OPEN
 from ..core.tensors import left_normal, right_normal
 from ..laws.base import ContactLaw
 from .base import GroupResult, StepContext
-from .contact import FAR, ContactGroup, normal_axis, tangent_axis
+from .contact import FAR, ContactGroup, normal_axis, sub_penetration, tangent_axis
 
 __all__ = ["MasterChain", "TwoBodyGroup", "master_shape"]
 
@@ -308,12 +308,7 @@ class TwoBodyGroup(ContactGroup):
         st, D, d_prev, Dd_prev = state, dict.fromkeys(_OUT), d_start, None
         dv_sum, Ddv_sum = 0.0, None
         for k in range(1, nsub + 1):
-            a_k = k / nsub
-            if nsub == 1:
-                d_k, Dd_k = d_end, Dd_end
-            else:
-                d_k = d_start + a_k * (d_end - d_start)
-                Dd_k = None if Dd_end is None else a_k * Dd_end
+            d_k, Dd_k = sub_penetration(k, nsub, d_start, d_end, Dd_end)
             a_th = (k - 1 + theta) / nsub
             t_th = self._interp(self.dN, xo + a_th * dx) if geo else self._t0
             e_v, dev = tangent_axis(t_th)
