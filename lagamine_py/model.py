@@ -99,7 +99,8 @@ class FoundationSpec:
 class ContactSpec:
     """A ``*CONTACT`` pair: the slave ``surface`` against a rigid ``foundation`` or, with
     ``master`` (``foundation`` then ""), against another surface's faces
-    (:mod:`lagamine_py.elements.two_body`; ``search`` its window's reach, None: default)."""
+    (:mod:`lagamine_py.elements.two_body`; ``search`` its window's reach, None: default;
+    ``passes`` 2: the master's points project on the slave's faces too, forces averaged)."""
     surface: str
     foundation: str
     law: str
@@ -107,6 +108,7 @@ class ContactSpec:
     where: Where | None = None
     master: str | None = None
     search: float | None = None
+    passes: int = 1                # 2: the master's points project on the slave's faces too
 
     @property
     def target(self) -> str:

@@ -30,13 +30,14 @@ def _law(**kw):
     return registry.get("contact_laws", "COULOMB")(**values)
 
 
-def _setup(case, nlgeom=True, ax=False, substeps=1):
+def _setup(case, nlgeom=True, ax=False, substeps=1, passes=1):
     coords, sf, mf = _pair()
     if ax:
         coords = coords + [3.0, 0.0]
     law = _law(SUBSTEPS=substeps)
     grp = TwoBodyGroup("S->M", sf, [1, 2], [1, 1], coords, mf, "M", law, gauss=3,
-                       axisymmetric=ax, thickness=2.0, search=1.0)
+                       axisymmetric=ax, thickness=2.0, search=1.0, passes=passes,
+                       master_elements=[3, 4, 5], master_element_faces=[1, 1, 1])
     rng = np.random.default_rng(3)
     n = len(coords)
     u_old = 2e-3 * rng.standard_normal((n, 2))
@@ -149,3 +150,49 @@ def test_window_grows_when_points_slide():
     u[:5, 0] += 2.5
     assert grp.refresh(u)
     assert not np.array_equal(dofs, grp.dofs) or dofs.shape != grp.dofs.shape
+
+
+# ------------------------------------------------------------------ two passes (PASSES=2)
+
+
+@pytest.mark.parametrize("case", ["stick", "slip"])
+@pytest.mark.parametrize("nlgeom", [True, False])
+def test_two_pass_tangent_matches_finite_differences(case, nlgeom):
+    """PASSES=2: the master's points project on the slave's faces too; the tangent of both
+    passes, each surface's nodes in the other's columns, against central differences."""
+    grp, u_old, u_new, state, ctx = _setup(case, nlgeom, passes=2)
+    assert grp.nf == 5 and grp.ng == 15
+    # each surface's faces pair with the other's only (chain faces 0-1 slave, 2-4 master)
+    win = grp.window
+    assert ((win[:2] >= 2) | (win[:2] < 0)).all() and (win[2:] < 2).all() and (win >= 0).any()
+    res, K, Kfd = _fd_check(grp, u_old, u_new, state, ctx)
+    status = np.asarray(res.state["status"]).reshape(grp.nf, grp.nq)
+    want = {"stick": STICK, "slip": SLIP}[case]
+    assert (status[:2] == want).all()                   # the slave's points
+    assert (status[2:] == want).any()                   # and some of the master's
+    scale = np.abs(K).max()
+    assert np.abs(K - Kfd).max() <= 1e-6 * scale
+
+
+@pytest.mark.parametrize("case", ["stick", "slip"])
+def test_two_passes_average_the_two_one_pass_pairs(case):
+    """The two-pass forces are half the sum of the one-pass pairs S on M and M on S (each pass
+    at its full penalty, half the weight), and action = reaction holds for the sum."""
+    coords, sf, mf = _pair()
+    two, u_old, u_new, state, ctx = _setup(case, passes=2)
+    law = two.law
+    s_on_m = TwoBodyGroup("S->M", sf, [1, 2], [1, 1], coords, mf, "M", law, gauss=3,
+                          thickness=2.0, search=1.0)
+    m_on_s = TwoBodyGroup("M->S", mf, [3, 4, 5], [1, 1, 1], coords, sf, "S", law, gauss=3,
+                          thickness=2.0, search=1.0)
+    n = len(coords)
+    st = {k: np.asarray(v) for k, v in state.items()}
+    half = [{k: v[:6] for k, v in st.items()}, {k: v[6:] for k, v in st.items()}]
+    ones = [g.compute(u_new, u_old, h, ctx, tangent=False) for g, h in zip((s_on_m, m_on_s), half)]
+    f1 = _global(s_on_m, ones[0].f, n) + _global(m_on_s, ones[1].f, n)
+    res = two.compute(u_new, u_old, state, ctx, tangent=False)
+    f2 = _global(two, res.f, n)
+    assert np.abs(ones[1].f).max() > 1.0                 # the second pass carries force
+    assert np.allclose(f2, 0.5 * f1, rtol=0, atol=1e-12 * np.abs(f1).max())
+    b = f2.reshape(-1, 2)
+    assert np.abs(b[:5].sum(axis=0) + b[5:].sum(axis=0)).max() <= 1e-13 * np.abs(b[:5]).max()

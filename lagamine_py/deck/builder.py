@@ -888,6 +888,9 @@ class _Builder(ImportMixin):
         if params["SEARCH"] is not None and target != "MASTER":
             self.pb.at(blk, "SEARCH= goes with MASTER= (the pairing of two deformable bodies)")
             ok = False
+        if params["PASSES"] != 1 and target != "MASTER":
+            self.pb.at(blk, "PASSES= goes with MASTER= (a rigid foundation has no points of its own)")
+            ok = False
         for key, kind, table in (("SURFACE", "SURFACE", self.m.surfaces),
                                  (target, "SURFACE" if target == "MASTER" else "FOUNDATION",
                                   self.m.surfaces if target == "MASTER" else self.m.foundations),
@@ -907,7 +910,8 @@ class _Builder(ImportMixin):
                     return
             self.m.contacts.append(ContactSpec(params["SURFACE"], params["FOUNDATION"] or "",
                                                params["LAW"], params["GAUSS"], blk.where,
-                                               master=params["MASTER"], search=params["SEARCH"]))
+                                               master=params["MASTER"], search=params["SEARCH"],
+                                               passes=params["PASSES"]))
 
     def _kw_amplitude(self, blk, params, rows):
         name = params["NAME"]
@@ -1006,6 +1010,12 @@ class _Builder(ImportMixin):
                 self.pb.at(cs.where, f"MASTER={cs.master}: its faces have {rows.shape[1]} nodes; a "
                                      f"master surface needs 3-node faces (Q8, T6 elements), whose "
                                      f"parabolic arcs the slave's points project on")
+                continue
+            slave_rows = surface_faces(self.m, cs.surface)[0]
+            if cs.passes == 2 and slave_rows.shape[1] != 3:
+                self.pb.at(cs.where, f"PASSES=2: SURFACE={cs.surface} has {slave_rows.shape[1]}-node "
+                                     f"faces; with two passes it is a master too and needs 3-node "
+                                     f"faces (Q8, T6 elements)")
                 continue
             both = set(zip(elements.tolist(), faces.tolist())) & set(zip(slave_el.tolist(),
                                                                           slave_faces.tolist()))

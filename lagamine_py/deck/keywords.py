@@ -199,7 +199,12 @@ KEYWORDS: dict[str, Keyword] = {k.name: k for k in (
                                  Param("SEARCH", float, None, gt=0.0, unit="length",
                                        doc="with MASTER: each slave face couples to the master faces "
                                            "within this distance (default three times the larger "
-                                           "median face length); re-paired before every increment")),
+                                           "median face length); re-paired before every increment"),
+                                 Param("PASSES", int, 1, choices=(1, 2),
+                                       doc="with MASTER: 1, the SURFACE's points kept out of the "
+                                           "master; 2, the MASTER's points kept out of the SURFACE "
+                                           "too, each pass carrying half the forces (both surfaces "
+                                           "need 3-node faces; docs/two_body.md)")),
             doc="contact elements on a surface against a foundation or a master surface"),
     Keyword("AMPLITUDE", "model", (_name("NAME", True),),
             Data("rows", (Col("time"), Col("value")), repeat=2, min_lines=1, doc="`time, value` pairs"),

@@ -161,13 +161,43 @@ class TwoBodyGroup(ContactGroup):
 
     def __init__(self, name: str, face_nodes, elements, faces, coords0, master_faces,
                  master_name: str, law: ContactLaw, gauss: int = 3, axisymmetric: bool = False,
-                 thickness: float = 1.0, search: float | None = None):
+                 thickness: float = 1.0, search: float | None = None, passes: int = 1,
+                 master_elements=None, master_element_faces=None):
+        if passes not in (1, 2):
+            raise ValueError(f"contact {name!r}: PASSES is 1 or 2, not {passes}")
+        self.passes = int(passes)
+        slave_faces = np.asarray(face_nodes, np.int64)
+        master_faces = np.asarray(master_faces, np.int64)
+        ns, nm = len(slave_faces), len(master_faces)
+        if passes == 2:
+            # both surfaces carry points, each projecting on the other's faces (module doc)
+            if master_elements is None or master_element_faces is None:
+                raise ValueError(f"contact {name!r}: two passes need the master's elements and faces")
+            face_nodes = np.concatenate([slave_faces, master_faces])
+            elements = np.concatenate([np.asarray(elements, int), np.asarray(master_elements, int)])
+            faces = np.concatenate([np.asarray(faces, int), np.asarray(master_element_faces, int)])
+            chain = face_nodes
+        else:
+            chain = master_faces
         super().__init__(name, face_nodes, elements, faces, coords0, None, master_name, law,
                          gauss, axisymmetric, thickness)
-        self.master = MasterChain(master_faces, coords0)
+        self.master = MasterChain(chain, coords0)
         self.master_name = master_name
         self._slave_dofs = self.dofs.copy()                           # (f, nd)
         self._gface = np.repeat(np.arange(self.nf), self.nq)          # (g,) face of a point
+        # the chain faces each face may meet (f, K), -1 padded: the other surface's
+        if passes == 2:
+            side = np.repeat([0, 1], [ns, nm])                       # 0 slave, 1 master surface
+            self._allowed = side[:, None] != side[None, :]            # (f, m)
+            width = max(ns, nm)
+            own = [np.arange(ns, ns + nm), np.arange(ns)]
+            self._others = np.full((self.nf, width), -1, np.int64)
+            for k in (0, 1):
+                self._others[side == k, :len(own[k])] = own[k]
+            self._Wg = 0.5 * self._Wg        # each pass carries half: the forces are averaged
+        else:
+            self._allowed = None
+            self._others = np.broadcast_to(np.arange(nm), (self.nf, nm))
         if search is None:
             def median_length(x):
                 return float(np.median(np.linalg.norm(x[:, 1] - x[:, 0], axis=1))) if len(x) else 0.0
@@ -187,6 +217,8 @@ class TwoBodyGroup(ContactGroup):
         Y = self._face_x(u)
         X = self.master.positions(u)
         near = MasterChain.near(Y, X, self.search)                         # (f, m)
+        if self._allowed is not None:
+            near &= self._allowed
         if self.window is not None and np.array_equal(near, self._near):
             return False
         self._near = near
@@ -278,8 +310,8 @@ class TwoBodyGroup(ContactGroup):
         if not len(lost):
             return 0
         e_u, _ = normal_axis(t[lost])
-        allf = np.broadcast_to(np.arange(len(self.master.face_nodes)), (len(lost), len(X)))
-        pr = self.master.project(P[lost], e_u, X, np.ascontiguousarray(allf))
+        cand = np.ascontiguousarray(self._others[self._gface[lost]])
+        pr = self.master.project(P[lost], e_u, X, cand)
         return int(np.sum(pr["found"] & (pr["d"] > -0.5 * self.search)))
 
     # ----------------------------------------------------------------- compute
@@ -404,9 +436,8 @@ class TwoBodyGroup(ContactGroup):
         geo = bool(ctx.nlgeom)
         P, t = self._axes_t(self._face_x(u_new), geo)
         X = self.master.positions(u_new)
-        allf = np.broadcast_to(np.arange(len(X)), (self.ng, len(X)))
         e_u, _ = normal_axis(t)
-        pr = self.master.project(P, e_u, X, np.ascontiguousarray(allf))
+        pr = self.master.project(P, e_u, X, np.ascontiguousarray(self._others[self._gface]))
         found = pr["found"]
         wt, _ = self._weights(P, geo)
         dA = wt * np.sqrt((t * t).sum(-1))
@@ -416,9 +447,12 @@ class TwoBodyGroup(ContactGroup):
         gap = np.where(found, -pr["d"], 0.0)
         if not found.all():
             N, _ = master_shape(np.linspace(-1.0, 1.0, 5))
-            pts = np.einsum("sb,mbi->msi", N, X).reshape(-1, 2)
-            far = P[~found]
-            gap[~found] = np.sqrt(((far[:, None] - pts[None]) ** 2).sum(-1)).min(axis=1)
+            pts = np.einsum("sb,mbi->msi", N, X)                          # (m, 5, 2)
+            lost = np.flatnonzero(~found)
+            cand = self._others[self._gface[lost]]                        # (h, K)
+            dist = np.sqrt(((P[lost, None, None] - pts[np.maximum(cand, 0)]) ** 2).sum(-1))
+            dist = np.where(cand[:, :, None] >= 0, dist, np.inf)
+            gap[lost] = dist.reshape(len(lost), -1).min(axis=1)
         pf = p + np.asarray(state.get("ps", 0.0), float)
         tf = tau + np.asarray(state.get("ts", 0.0), float)
         vec = pf[:, None] * right_normal(t) - tf[:, None] * t

@@ -272,10 +272,11 @@ def build_problem(model) -> Problem:
         if cs.master is not None:             # two deformable bodies (elements.two_body)
             master = _surface(model, cs.master)
             name = f"{surf.name}->{master.name}"
+            m_nodes, m_elements, m_faces = surface_faces(model, master.name)
             groups.append(TwoBodyGroup(name, face_nodes, elements, faces, model.coords,
-                                       surface_faces(model, master.name)[0], master.name, claw,
-                                       cs.gauss, model.axisymmetric,
-                                       _surface_thickness(model, surf, lookup), cs.search))
+                                       m_nodes, master.name, claw, cs.gauss, model.axisymmetric,
+                                       _surface_thickness(model, surf, lookup), cs.search,
+                                       cs.passes, m_elements, m_faces))
         else:
             fname = _key(model.foundations, cs.foundation)
             name = f"{surf.name}->{fname}"
