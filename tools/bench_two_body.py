@@ -25,9 +25,9 @@ DECKS = Path(__file__).resolve().parents[1] / "decks"
 
 def rigid_variant(text: str) -> str:
     """The two-body deck with the upper arc on a rigid flat at y = -10 (no master)."""
-    text = text.replace("*CONTACT, SURFACE=<SLAVE>, MASTER=<MASTER>, LAW=SMOOTH",
+    text = text.replace("*CONTACT, SURFACE=<SLAVE>, MASTER=<MASTER>, LAW=SMOOTH, GAUSS=<GAUSS>, PASSES=<PASSES>",
                         "*FOUNDATION, NAME=FLAT\n-5, -10\n5, -10\n15, -10\n"
-                        "*CONTACT, SURFACE=ARC, FOUNDATION=FLAT, LAW=SMOOTH")
+                        "*CONTACT, SURFACE=ARC, FOUNDATION=FLAT, LAW=SMOOTH, GAUSS=<GAUSS>")
     return text.replace("R=5, E=57870.4, NU=0", "R=10, E=200000, NU=0.3")
 
 
