@@ -1,12 +1,20 @@
 """Cost per Newton iteration of two-body contact against a rigid foundation (issue 18, item 4).
 
-The two-body Hertz deck (decks/hertz_two_body.dat, both cylinders, fine mesh by default) against
-the same two meshes where the upper cylinder presses a rigid flat instead (the lower one held
-apart, no contact): same DOFs, same solid work, the contact group and its pattern differ.
-Reports the DOFs, iterations and wall time per iteration of each (median of --repeat runs; a
-run's wall time includes building the problem, small against the iterations here).
+The two-body Hertz deck (decks/hertz_two_body.dat, both cylinders; ``--mesh xfine`` is the
+20 k DOF mesh of tools/make_two_body_meshes.py) against the same two meshes where the upper
+cylinder presses a rigid flat instead (the lower one held apart, no contact): same DOFs, same
+solid work, the contact group and its pattern differ.
 
-    python tools/bench_two_body.py [--mesh fine] [--repeat 3]
+Per variant (median of ``--repeat`` runs): the DOFs, the set-up (deck, problem and pattern
+build, timed apart), the converged iterations and the solves (every factorisation, those of
+cut-back attempts included), and the run's wall time per solve, split into the contact group,
+the solids, assembly and the linear solver.  ``--kernel`` is ``*CONTROLS KERNEL=`` of both
+(AUTO: numba solids above 2000 elements, NumPy contact; NUMBA: the rigid contact group's numba
+kernel too -- the two-body group has none and stays NumPy).
+
+    python tools/bench_two_body.py [--mesh xfine] [--repeat 3] [--kernel AUTO]
+
+Set MKL_NUM_THREADS=1 for stable counts (docs/performance.md).
 """
 from __future__ import annotations
 
@@ -14,11 +22,13 @@ import argparse
 import statistics
 import tempfile
 import time
+from collections import defaultdict
 from pathlib import Path
 
 from lagamine_py.deck import load_deck
 from lagamine_py.output.base import Writer
-from lagamine_py.solver import run
+from lagamine_py.solver import problem as problem_mod
+from lagamine_py.solver import steps as steps_mod
 
 DECKS = Path(__file__).resolve().parents[1] / "decks"
 
@@ -47,35 +57,80 @@ def with_kernel(text: str, kernel: str) -> str:
     return text.replace("*BOUNDARY\nAXIS, 1, 1, 0", f"*CONTROLS\nKERNEL={kernel}\n*BOUNDARY\nAXIS, 1, 1, 0")
 
 
-def timed(deck: Path, params: dict) -> tuple[int, int, float]:
-    model = load_deck(deck, parameters=params)
-    counter = Iterations()
-    with tempfile.TemporaryDirectory() as out:
+def _timed(obj, name: str, label: str, t: dict, n: dict) -> None:
+    """Wrap ``obj.name`` to add its wall time to ``t[label]`` and count calls in ``n``."""
+    fn = getattr(obj, name)
+
+    def timed(*a, **k):
         t0 = time.perf_counter()
-        run(model, Path(out), writers=[counter], deck_path=deck)
-        wall = time.perf_counter() - t0
-    return model.ndof, counter.count, wall
+        try:
+            return fn(*a, **k)
+        finally:
+            t[label] += time.perf_counter() - t0
+            n[label] += 1
+    setattr(obj, name, timed)
+
+
+def timed(deck: Path, params: dict) -> dict:
+    """One run of ``deck``: set-up and run wall times, iterations, solves, time per part."""
+    t0 = time.perf_counter()
+    model = load_deck(deck, parameters=params)
+    problem = problem_mod.build_problem(model)
+    setup = time.perf_counter() - t0
+    t, n = defaultdict(float), defaultdict(int)
+    for g, kind in zip(problem.groups, problem.kinds):
+        _timed(g, "compute", kind, t, n)
+        if kind == "solid":
+            _timed(g, "compute_into", kind, t, n)       # the fused numba path
+    _timed(problem.pattern, "assemble_data", "assembly", t, n)
+    orig_make = steps_mod.make_solver
+
+    def make_solver(name):
+        s = orig_make(name)
+        _timed(s, "factor", "factor", t, n)
+        _timed(s, "solve", "solve", t, n)
+        return s
+    steps_mod.make_solver = make_solver
+    counter = Iterations()
+    try:
+        with tempfile.TemporaryDirectory() as out:
+            t0 = time.perf_counter()
+            steps_mod.run(model, Path(out), writers=[counter], deck_path=deck, problem=problem)
+            wall = time.perf_counter() - t0
+    finally:
+        steps_mod.make_solver = orig_make
+    solves = max(n["factor"], 1)
+    return {"ndof": model.ndof, "setup": setup, "wall": wall, "iterations": counter.count,
+            "solves": n["factor"], "per_solve": wall / solves,
+            "contact": t["contact"] / solves, "solid": t["solid"] / solves,
+            "assembly": t["assembly"] / solves, "linear": (t["factor"] + t["solve"]) / solves}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mesh", default="fine")
+    ap.add_argument("--mesh", default="xfine")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--kernel", default="NUMPY", help="*CONTROLS KERNEL= of both (the two-body "
-                    "group is NumPy only; AUTO gives the rigid one its numba kernel)")
+    ap.add_argument("--kernel", default="AUTO", help="*CONTROLS KERNEL= of both runs")
+    ap.add_argument("--passes", default="1", help="PASSES= of the two-body pair")
     args = ap.parse_args()
     text = with_kernel((DECKS / "hertz_two_body.dat").read_text(), args.kernel)
     two = DECKS / "_bench_two_body.dat"
     rigid = DECKS / "_bench_rigid_two_meshes.dat"
     two.write_text(text)
     rigid.write_text(rigid_variant(text))
+    ratio = []
     try:
         for label, deck in (("two bodies", two), ("rigid flat", rigid)):
-            runs = [timed(deck, {"MESH": args.mesh}) for _ in range(args.repeat)]
-            ndof, iters, _ = runs[0]
-            wall = statistics.median(r[2] for r in runs)
-            print(f"{label:11s} ndof {ndof:6d}  iterations {iters:3d}  wall {wall:7.3f} s  "
-                  f"per iteration {wall / max(iters, 1) * 1e3:8.1f} ms")
+            runs = [timed(deck, {"MESH": args.mesh, "PASSES": args.passes})
+                    for _ in range(args.repeat)]
+            med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+            ratio.append(med["per_solve"])
+            print(f"{label:11s} ndof {int(med['ndof']):6d}  set-up {med['setup']:6.2f} s  "
+                  f"iterations {int(med['iterations']):3d}  solves {int(med['solves']):3d}  "
+                  f"run {med['wall']:6.2f} s  per solve {med['per_solve'] * 1e3:7.1f} ms "
+                  f"(contact {med['contact'] * 1e3:6.1f}, solids {med['solid'] * 1e3:6.1f}, "
+                  f"assembly {med['assembly'] * 1e3:5.1f}, linear {med['linear'] * 1e3:6.1f})")
+        print(f"two bodies / rigid flat per solve: {ratio[0] / ratio[1]:.2f}")
     finally:
         two.unlink()
         rigid.unlink()
