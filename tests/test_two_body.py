@@ -196,3 +196,19 @@ def test_two_passes_average_the_two_one_pass_pairs(case):
     assert np.allclose(f2, 0.5 * f1, rtol=0, atol=1e-12 * np.abs(f1).max())
     b = f2.reshape(-1, 2)
     assert np.abs(b[:5].sum(axis=0) + b[5:].sum(axis=0)).max() <= 1e-13 * np.abs(b[:5]).max()
+
+
+def test_two_pass_points_report_the_other_surface():
+    """Writers' records with two passes: every point of both surfaces, the resultant F the sum
+    over both passes (minus the master-side forces: here the slave's resultant), and an open
+    point's gap measured to the other surface's faces, never to its own (0 would be its own
+    face)."""
+    grp, u_old, u_new, state, ctx = _setup("open", passes=2)
+    res = grp.compute(u_new, u_old, state, ctx, tangent=False)
+    cp = grp.points(u_new, res.state, ctx)
+    assert len(cp.p) == 15 and (np.asarray(cp.gap) > 0.05).all()     # lifted by 0.2
+    grp, u_old, u_new, state, ctx = _setup("stick", passes=2)
+    res = grp.compute(u_new, u_old, state, ctx, tangent=False)
+    cp = grp.points(u_new, res.state, ctx)
+    b = _global(grp, res.f, len(u_new)).reshape(-1, 2)
+    assert np.allclose(cp.F, -b[:5].sum(axis=0), rtol=1e-12, atol=0)

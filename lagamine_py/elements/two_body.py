@@ -46,9 +46,17 @@ but would find one on the whole master (within half of ``search``) has slid out 
 the group asks for a cut-back (a smaller increment, re-paired at its start).
 
 What one pass gives away (``docs/two_body.md``, measured): the master's nodes are not
-constrained, only the slave's Gauss points, so a master node may sink into a coarser slave; the
-patch test passes for a flat interface either way (both sides stay flat).  Choose the finer or
-the softer surface as the slave.
+constrained, only the slave's Gauss points, so a master node may sink into a coarser slave; and
+the master's nodal forces integrate its shape functions, kinked at its face ends, with the
+slave's Gauss points, so a flat non-matching interface whose slave faces straddle master face
+ends fails the patch test (nested meshes pass it).  Choose the finer (at equal meshes the
+stiffer) surface as the slave.
+
+Two passes (``PASSES=2``).  The group's faces are the slave's then the master's, and so are the
+chain's; a face's window and candidates are the other surface's faces only.  Each point's
+weight is halved, so the forces, the tangent, the areas and totals (P, T, A, energies) are the
+average of the two one-pass pairs (slave on master, master on slave).  This halves the
+non-nested patch-test error where the slave is the coarser surface but spoils the nested case.
 """
 from __future__ import annotations
 
@@ -195,7 +203,10 @@ class TwoBodyGroup(ContactGroup):
             for k in (0, 1):
                 self._others[side == k, :len(own[k])] = own[k]
             self._Wg = 0.5 * self._Wg        # each pass carries half: the forces are averaged
+            # +1 where a point's own force acts on the slave, -1 (its reaction does) on the master
+            self._on_slave = np.repeat(np.where(side == 0, 1.0, -1.0), self.nq)
         else:
+            self._on_slave = np.ones(self.ng)
             self._allowed = None
             self._others = np.broadcast_to(np.arange(nm), (self.nf, nm))
         if search is None:
@@ -430,7 +441,8 @@ class TwoBodyGroup(ContactGroup):
     # ------------------------------------------------------------------ output
     def points(self, u_new, state, ctx: StepContext):
         """Contact points for writers, as :meth:`ContactGroup.points`: ``F`` the resultant force
-        of the master on the slave (minus the forces on the master's nodes), ``M`` 0; ``gap``
+        of the master on the slave (minus the forces on the slave's nodes, of both passes), ``M``
+        0; ``gap``
         of a point whose normal meets no master face is its distance to the nearest of the
         master's nodes and face quarter points."""
         geo = bool(ctx.nlgeom)
@@ -456,5 +468,5 @@ class TwoBodyGroup(ContactGroup):
         pf = p + np.asarray(state.get("ps", 0.0), float)
         tf = tau + np.asarray(state.get("ts", 0.0), float)
         vec = pf[:, None] * right_normal(t) - tf[:, None] * t
-        Fres = -np.einsum("gi,g->i", vec, wt)
+        Fres = -np.einsum("gi,g->i", vec, wt * self._on_slave)
         return self._point_record(state, P, p, tau, gap, status, dA, Fres, 0.0)
