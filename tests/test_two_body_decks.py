@@ -159,14 +159,17 @@ def test_two_body_coulomb_block(tmp_path, b, passes):
     assert (np.asarray(cp.status)[closed] == 2).all() and closed[:24].all()   # all slip
 
 
-def test_change_contact_law_names_the_master(tmp_path):
+@pytest.mark.parametrize("passes", [1, 2])
+def test_change_contact_law_names_the_master(tmp_path, passes):
     """*CHANGE CONTACT LAW, SURFACE=, MASTER= (DECKS.md): pressed frictionless (T = 0 whatever the
-    push), then the pair's law becomes DRY: the pushed block holds T = phi P (Coulomb)."""
+    push), then the pair's law becomes DRY: the pushed block holds T = phi P (Coulomb), and the
+    lower block's resultant force on it is (-phi P, P) (equilibrium), with one or two passes."""
     steps = PUSH.replace("*STEP, NAME=PUSH\n", "*STEP, NAME=PUSH\n*CHANGE CONTACT LAW, "
                          "SURFACE=UP_BOTTOM, MASTER=LOW_TOP, LAW=DRY\n")
     # frictionless, the upper block is held along x by its left edge while it is pressed
     steps = steps.replace("LOW_LEFT, 1, 1, 0\n", "LOW_LEFT, 1, 1, 0\nUP_LEFT, 1, 1, 0\n", 1)
-    path = _deck(tmp_path, nxl=3, nxu=8, x0=5, lx=20, steps=steps)
+    path = _deck(tmp_path, nxl=3, nxu=8, x0=5, lx=20, steps=steps,
+                 target=f"MASTER=LOW_TOP, PASSES={passes}")
     text = path.read_text().replace("LAW=DRY\n*STEP", "LAW=FREE\n*STEP", 1)
     text = text.replace("*CONTACT LAW, NAME=DRY", "*CONTACT LAW, NAME=FREE, TYPE=COULOMB\n"
                         "KP=1e6, KT=1e6, PHI=0\n*CONTACT LAW, NAME=DRY", 1)
@@ -176,6 +179,7 @@ def test_change_contact_law_names_the_master(tmp_path):
     assert abs(press.contacts[0].T) <= 1e-9 * 2000
     cp = cap.results[-1].contacts[0]
     assert abs(cp.T) == pytest.approx(0.3 * cp.P, rel=1e-6)
+    assert np.allclose(cp.F, [-0.3 * 2000.0, 2000.0], rtol=1e-6)
     wrong = path.read_text().replace("MASTER=LOW_TOP, LAW=DRY", "MASTER=LOW_BOTTOM, LAW=DRY")
     path.write_text(wrong)
     with pytest.raises(DeckError, match="MASTER=LOW_BOTTOM"):

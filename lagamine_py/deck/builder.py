@@ -1002,7 +1002,7 @@ class _Builder(ImportMixin):
                 continue
             try:
                 rows, elements, faces = surface_faces(self.m, cs.master)
-                _, slave_el, slave_faces = surface_faces(self.m, cs.surface)
+                slave_rows, slave_el, slave_faces = surface_faces(self.m, cs.surface)
             except (KeyError, ValueError) as exc:
                 self.pb.at(cs.where, str(exc).strip("'\""))
                 continue
@@ -1011,7 +1011,6 @@ class _Builder(ImportMixin):
                                      f"master surface needs 3-node faces (Q8, T6 elements), whose "
                                      f"parabolic arcs the slave's points project on")
                 continue
-            slave_rows = surface_faces(self.m, cs.surface)[0]
             if cs.passes == 2 and slave_rows.shape[1] != 3:
                 self.pb.at(cs.where, f"PASSES=2: SURFACE={cs.surface} has {slave_rows.shape[1]}-node "
                                      f"faces; with two passes it is a master too and needs 3-node "
