@@ -12,7 +12,7 @@ the solids, assembly and the linear solver.  ``--kernel`` is ``*CONTROLS KERNEL=
 (AUTO: numba solids above 2000 elements, NumPy contact; NUMBA: the rigid contact group's numba
 kernel too -- the two-body group has none and stays NumPy).
 
-    python tools/bench_two_body.py [--mesh xfine] [--repeat 3] [--kernel AUTO]
+    python tools/bench_two_body.py [--mesh xfine] [--repeat 3] [--kernel AUTO] [--search 0.5]
 
 Set MKL_NUM_THREADS=1 for stable counts (docs/performance.md).
 """
@@ -112,11 +112,14 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--kernel", default="AUTO", help="*CONTROLS KERNEL= of both runs")
     ap.add_argument("--passes", default="1", help="PASSES= of the two-body pair")
+    ap.add_argument("--search", type=float, default=None,
+                    help="SEARCH= of the two-body pair (default: the element's)")
     args = ap.parse_args()
     text = with_kernel((DECKS / "hertz_two_body.dat").read_text(), args.kernel)
     two = DECKS / "_bench_two_body.dat"
     rigid = DECKS / "_bench_rigid_two_meshes.dat"
-    two.write_text(text)
+    search = "" if args.search is None else f", SEARCH={args.search}"
+    two.write_text(text.replace("PASSES=<PASSES>\n", f"PASSES=<PASSES>{search}\n"))
     rigid.write_text(rigid_variant(text))
     ratio = []
     try:
