@@ -55,8 +55,9 @@ stiffer) surface as the slave.
 Two passes (``PASSES=2``).  The group's faces are the slave's then the master's, and so are the
 chain's; a face's window and candidates are the other surface's faces only.  Each point's
 weight is halved, so the forces, the tangent, the areas and totals (P, T, A, energies) are the
-average of the two one-pass pairs (slave on master, master on slave).  This halves the
-non-nested patch-test error where the slave is the coarser surface but spoils the nested case.
+average of the two one-pass pairs (slave on master, master on slave).  This reduces the
+non-nested patch-test error (most where the slave is the coarser surface) but spoils the nested
+case, which one pass gets exact.
 """
 from __future__ import annotations
 
@@ -442,9 +443,8 @@ class TwoBodyGroup(ContactGroup):
     def points(self, u_new, state, ctx: StepContext):
         """Contact points for writers, as :meth:`ContactGroup.points`: ``F`` the resultant force
         of the master on the slave (minus the forces on the slave's nodes, of both passes), ``M``
-        0; ``gap``
-        of a point whose normal meets no master face is its distance to the nearest of the
-        master's nodes and face quarter points."""
+        0; ``gap`` of a point whose normal meets no face of the other surface is its distance to
+        the nearest of that surface's nodes and face quarter points."""
         geo = bool(ctx.nlgeom)
         P, t = self._axes_t(self._face_x(u_new), geo)
         X = self.master.positions(u_new)
