@@ -203,6 +203,8 @@ class _AdviceFormatter:
 
 
 def _cmd_run(args) -> int:
+    from .core.threads import pin_openblas_at_load
+    pin_openblas_at_load()                  # before numpy loads: no threadpoolctl needed
     from .solver import run
     from .solver.restart import RestartError, deck_of, load
 
