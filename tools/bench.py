@@ -535,31 +535,47 @@ def _slide_tangent(nx: int, ny: int):
     return A, np.random.default_rng(0).standard_normal(A.shape[0])
 
 
-def bench_startup(repeat: int = 5, trees: list[Path] | None = None) -> list[dict]:
-    """Best whole-process wall time of ``lagamine-py --help``, ``check`` and ``run`` of the main
-    job (``decks/press_slide.dat``), each in a fresh interpreter, with the byte code compiled
-    (``PYTHONDONTWRITEBYTECODE`` unset, one run beforehand) as after an install.  ``trees``:
+def bench_startup(repeat: int = 5, trees: list[Path] | None = None,
+                  bytecode: bool = True) -> list[dict]:
+    """Best whole-process wall time, and the CPU time (user + system) and peak resident memory
+    of the same runs, of ``lagamine-py --help``, ``check`` and ``run`` of the main job
+    (``decks/press_slide.dat``), each in a fresh interpreter, with the byte code compiled
+    (``PYTHONDONTWRITEBYTECODE`` unset, one run beforehand) as after an install, or, with
+    ``bytecode=False``, as this machine's agents run (the variable set: every start compiles
+    lagamine_py from source).  CPU time is what a loaded machine changes least.  ``trees``:
     source trees to compare (e.g. an export of an older commit), their runs interleaved so a
     shared machine's load falls on all alike; default this one."""
     trees = trees or [ROOT]
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    if not bytecode:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
     jobs = {"help": ["--help"], "check": ["check", str(DECK)]}
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         jobs["run"] = ["run", str(DECK), "-q", "--overwrite", "-o", str(Path(tmp) / "out")]
-        best = {(t, j): np.inf for t in trees for j in jobs}
+        best = {(t, j, k): np.inf for t in trees for j in jobs for k in ("wall", "cpu", "mb")}
         for i in range(repeat + 1):
             for t in trees:
                 for j, argv in jobs.items():
                     t0 = time.perf_counter()
-                    subprocess.run([sys.executable, "-m", "lagamine_py", *argv], check=True,
-                                   capture_output=True, cwd=tmp,
-                                   env=dict(env, PYTHONPATH=str(t)))
+                    proc = subprocess.Popen([sys.executable, "-m", "lagamine_py", *argv],
+                                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                            cwd=tmp, env=dict(env, PYTHONPATH=str(t)))
+                    _, status, usage = os.wait4(proc.pid, 0)
+                    wall = time.perf_counter() - t0
+                    proc.returncode = os.waitstatus_to_exitcode(status)
+                    if proc.returncode:
+                        raise RuntimeError(f"{argv} in {t}: {proc.stderr.read().decode()}")
+                    proc.stderr.close()
                     if i:                                   # the first round compiles
-                        best[t, j] = min(best[t, j], time.perf_counter() - t0)
+                        for k, v in (("wall", wall), ("cpu", usage.ru_utime + usage.ru_stime),
+                                     ("mb", usage.ru_maxrss / 1024)):
+                            best[t, j, k] = min(best[t, j, k], v)
         for t in trees:
-            rows.append({"tree": str(t), **{j: best[t, j] for j in jobs},
-                         "load_average": os.getloadavg()})
+            rows.append({"tree": str(t), **{j: best[t, j, "wall"] for j in jobs},
+                         **{f"{j}_cpu": best[t, j, "cpu"] for j in jobs},
+                         **{f"{j}_peak_mb": best[t, j, "mb"] for j in jobs},
+                         "bytecode": bytecode, "load_average": os.getloadavg()})
     return rows
 
 
@@ -735,6 +751,8 @@ def main(argv=None) -> int:
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--trees", type=Path, nargs="+", help="source trees to compare (default: "
                    "this one), e.g. `git archive COMMIT | tar -x -C DIR`")
+    p.add_argument("--no-bytecode", action="store_true", help="with PYTHONDONTWRITEBYTECODE=1 "
+                   "(every start compiles lagamine_py from source)")
     p = sub.add_parser("vtu")
     p.add_argument("file", type=Path, help="a body .vtu of a run (e.g. of `one 160 80 --keep DIR`)")
     p.add_argument("--repeat", type=int, default=12)
@@ -805,7 +823,7 @@ def main(argv=None) -> int:
         args.json.write_text(json.dumps(rows, indent=1))
         return
     if args.cmd == "startup":
-        for row in bench_startup(args.repeat, args.trees):
+        for row in bench_startup(args.repeat, args.trees, not args.no_bytecode):
             print(json.dumps(row))
         return 0
     if args.cmd == "report":
