@@ -63,3 +63,16 @@ def test_an_unusable_numba_cache_dir_falls_back_to_a_writable_cache(tmp_path):
     cache = Path(caches.pop())
     assert not str(cache).startswith(str(blocked))
     assert any(cache.glob("solid._solid_kernel-*.nbi")), sorted(cache.iterdir())
+
+
+def test_a_cold_cache_is_announced_once_with_the_command(tmp_path):
+    code = ("import logging; logging.basicConfig()\n"
+            "from lagamine_py import kernels\n"
+            "kernels.module('solid'); kernels.module('solid')\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "empty")))
+    assert res.returncode == 0, res.stderr
+    assert res.stderr.count("lagamine-py compile") == 1, res.stderr
+    # the suite's own cache is warm (the test above compiled into it): nothing said
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert "lagamine-py compile" not in res.stderr, res.stderr

@@ -34,8 +34,10 @@ and whether a run loaded or compiled it.
 """
 from __future__ import annotations
 
+import logging
 from collections import Counter
 from importlib import import_module
+from pathlib import Path
 from types import ModuleType
 
 __all__ = ["SETTINGS", "AUTO_NUMBA_ELEMENTS", "AUTO_CONTACT", "available", "module", "use_numba", "calls",
@@ -73,7 +75,22 @@ def module(name: str) -> ModuleType | None:
             _loaded[name] = import_module(f"{__name__}.{name}")
         except ImportError:
             _loaded[name] = None
+        else:
+            _say_if_cold(name, _loaded[name])
     return _loaded[name]
+
+
+def _say_if_cold(name: str, mod: ModuleType) -> None:
+    """Tell (advice log, once per module) that numba is about to compile ``name``'s kernels:
+    its cache holds no index for an entry function, as after a fresh install."""
+    for fn in ENTRY_KERNELS[name]:
+        cache = Path(vars(mod)[fn].stats.cache_path)
+        if not any(cache.glob(f"{name}.{fn}-*.nbi")):
+            logging.getLogger("lagamine_py.advice").warning(
+                f"numba compiles the {name} kernel for this machine first (about 10 s, once; "
+                f"`lagamine-py compile{' --contact' if name == 'contact' else ''}` does it "
+                f"ahead, right after the install)")
+            return
 
 
 def available() -> bool:
