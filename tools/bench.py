@@ -10,6 +10,8 @@ Sub-commands (run from the repository root, in the project's venv)::
     python tools/bench.py solvers [--sizes 20x10 40x20 ...]        # SPLU vs PARDISO crossover
     python tools/bench.py startup [--trees A B]                     # --help, check, run of
                                                                     # the main job, whole process
+    python tools/bench.py first-run [--size 80x40]                 # fresh numba cache vs warm,
+                                                                    # with and without `compile`
     python tools/bench.py vtu FILE.vtu                              # VTU encodings: time, size,
                                                                     # does meshio read it
     python tools/bench.py report --json F [--png P]                 # markdown table + plot
@@ -579,6 +581,46 @@ def bench_startup(repeat: int = 5, trees: list[Path] | None = None,
     return rows
 
 
+def _process(argv: list[str], env: dict, cwd: str) -> dict:
+    """Wall time, CPU time (user + system) and peak resident MB of one child process."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd,
+                            env=env)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    err = proc.stderr.read().decode()
+    proc.stderr.close()
+    if os.waitstatus_to_exitcode(status):
+        raise RuntimeError(f"{argv}: {err}")
+    return {"wall": wall, "cpu": usage.ru_utime + usage.ru_stime, "peak_mb": usage.ru_maxrss / 1024}
+
+
+def bench_first_run(nx: int = 80, ny: int = 40) -> dict:
+    """A fresh install's first press-then-slide run against a warm one (issue 17 item 4): each
+    in its own process, one MKL thread (so the counts repeat), numba's cache in an empty
+    ``NUMBA_CACHE_DIR``: ``cold`` the first run as is (it compiles the solid kernel),
+    ``compile`` then ``after_compile`` the same with ``lagamine-py compile`` first, ``warm`` a
+    run on that cache.  Ratios to ``warm`` on CPU time, which the load of a shared machine
+    changes least, and on wall time."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["MKL_NUM_THREADS"] = "1"
+    out = {"mesh": f"{nx}x{ny}"}
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "ps.dat").write_text(press_slide_deck(nx, ny))
+        run = [sys.executable, "-m", "lagamine_py", "run", "ps.dat", "-q", "--overwrite", "-o"]
+        compile_ = [sys.executable, "-m", "lagamine_py", "compile"]
+        a, b = dict(env, NUMBA_CACHE_DIR=f"{tmp}/cache_a"), dict(env, NUMBA_CACHE_DIR=f"{tmp}/cache_b")
+        out["cold"] = _process(run + ["out_a"], a, tmp)
+        out["compile"] = _process(compile_, b, tmp)
+        out["after_compile"] = _process(run + ["out_b"], b, tmp)
+        out["warm"] = _process(run + ["out_c"], b, tmp)
+    for k in ("cold", "after_compile"):
+        for q in ("cpu", "wall"):
+            out[f"{k}/warm {q}"] = out[k][q] / out["warm"][q]
+    out["load_average"] = os.getloadavg()
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # report
 
@@ -753,6 +795,8 @@ def main(argv=None) -> int:
                    "this one), e.g. `git archive COMMIT | tar -x -C DIR`")
     p.add_argument("--no-bytecode", action="store_true", help="with PYTHONDONTWRITEBYTECODE=1 "
                    "(every start compiles lagamine_py from source)")
+    p = sub.add_parser("first-run")
+    p.add_argument("--size", type=_size, default=(80, 40))
     p = sub.add_parser("vtu")
     p.add_argument("file", type=Path, help="a body .vtu of a run (e.g. of `one 160 80 --keep DIR`)")
     p.add_argument("--repeat", type=int, default=12)
@@ -825,6 +869,9 @@ def main(argv=None) -> int:
     if args.cmd == "startup":
         for row in bench_startup(args.repeat, args.trees, not args.no_bytecode):
             print(json.dumps(row))
+        return 0
+    if args.cmd == "first-run":
+        print(json.dumps(bench_first_run(*args.size), indent=1))
         return 0
     if args.cmd == "report":
         results = []
