@@ -202,6 +202,7 @@ B_LEFT, 1, 1, 0
 """
 COMPILE_CONTACT = """*FOUNDATION, NAME=FLAT
 -10, 0
+0, 0
 10, 0
 *CONTACT LAW, NAME=DRY, TYPE=COULOMB
 KP=2e7, KT=2e7, PHI=0.2, B=0
@@ -210,10 +211,13 @@ KP=2e7, KT=2e7, PHI=0.2, B=0
 
 
 def _cmd_compile(args) -> int:
+    import logging
     import tempfile
     import time
 
     from . import kernels
+    # the compile model's own advice (a cold cache, penalties) is nothing for the user to act on
+    logging.getLogger("lagamine_py.advice").addHandler(logging.NullHandler())
     if not kernels.available():
         print("lagamine-py compile: numba is not installed (pip install 'lagamine_py[fast]'); "
               "runs use the NumPy kernels, nothing to compile", file=sys.stderr)
