@@ -76,3 +76,10 @@ def test_a_cold_cache_is_announced_once_with_the_command(tmp_path):
     # the suite's own cache is warm (the test above compiled into it): nothing said
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert "lagamine-py compile" not in res.stderr, res.stderr
+
+
+def test_compile_contact_compiles_or_finds_the_contact_kernel_too():
+    res = _cli("compile", "--contact")
+    assert res.returncode == 0, res.stderr
+    for fn in ("_solid_kernel", "_start_kernel", "_contact", "_faces", "_project"):
+        assert f" {fn}: " in res.stdout, res.stdout
