@@ -543,17 +543,24 @@ def bench_startup(repeat: int = 5, trees: list[Path] | None = None,
     of the same runs, of ``lagamine-py --help``, ``check`` and ``run`` of the main job
     (``decks/press_slide.dat``), each in a fresh interpreter, with the byte code compiled
     (``PYTHONDONTWRITEBYTECODE`` unset, one run beforehand) as after an install, or, with
-    ``bytecode=False``, as this machine's agents run (the variable set: every start compiles
-    lagamine_py from source).  CPU time is what a loaded machine changes least.  ``trees``:
+    ``bytecode=False``, as this machine's agents run (the variable set and a copy of each tree
+    without ``__pycache__``: every start compiles lagamine_py from source; numpy's and scipy's
+    byte code is the install's).  CPU time is what a loaded machine changes least.  ``trees``:
     source trees to compare (e.g. an export of an older commit), their runs interleaved so a
     shared machine's load falls on all alike; default this one."""
     trees = trees or [ROOT]
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    if not bytecode:
-        env["PYTHONDONTWRITEBYTECODE"] = "1"
     jobs = {"help": ["--help"], "check": ["check", str(DECK)]}
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
+        run_trees = {t: t for t in trees}
+        if not bytecode:
+            # a copy of each tree's package without byte code, which none of the runs writes
+            env["PYTHONDONTWRITEBYTECODE"] = "1"
+            for k, t in enumerate(trees):
+                run_trees[t] = Path(tmp) / f"tree{k}"
+                shutil.copytree(Path(t) / "lagamine_py", run_trees[t] / "lagamine_py",
+                                ignore=shutil.ignore_patterns("__pycache__"))
         jobs["run"] = ["run", str(DECK), "-q", "--overwrite", "-o", str(Path(tmp) / "out")]
         best = {(t, j, k): np.inf for t in trees for j in jobs for k in ("wall", "cpu", "mb")}
         for i in range(repeat + 1):
@@ -562,7 +569,7 @@ def bench_startup(repeat: int = 5, trees: list[Path] | None = None,
                     t0 = time.perf_counter()
                     proc = subprocess.Popen([sys.executable, "-m", "lagamine_py", *argv],
                                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                            cwd=tmp, env=dict(env, PYTHONPATH=str(t)))
+                                            cwd=tmp, env=dict(env, PYTHONPATH=str(run_trees[t])))
                     _, status, usage = os.wait4(proc.pid, 0)
                     wall = time.perf_counter() - t0
                     proc.returncode = os.waitstatus_to_exitcode(status)
