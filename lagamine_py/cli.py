@@ -96,6 +96,13 @@ def _parser() -> argparse.ArgumentParser:
                       help="factor of the displacements in mesh.png (default: chosen so that the "
                            "deformation shows; 1 for the true shape)")
 
+    comp = sub.add_parser("compile", parents=[common], help="compile the fast extra's kernels ahead "
+                          "(once, after installing it)", description="Compile the numba "
+                          "solid-element kernel that KERNEL=AUTO uses from 2000 solid elements into "
+                          "numba's on-disk cache, so that the first large run does not pay its "
+                          "compile (~10 s); --contact also the contact kernel (KERNEL=NUMBA only).  "
+                          "Says where the cache is.")
+    comp.add_argument("--contact", action="store_true", help="also the contact kernel")
     sweep = sub.add_parser("sweep", parents=[common], help="run a deck over a grid of *PARAMETER values")
     sweep.add_argument("deck", type=Path)
     sweep.add_argument("--set", action="append", default=[], metavar="NAME=v1,v2,...", dest="sets")
@@ -108,7 +115,8 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     handler = {"run": _cmd_run, "check": _cmd_check, "plugins": _cmd_plugins,
-               "compare": _cmd_compare, "plot": _cmd_plot, "sweep": _cmd_sweep}[args.command]
+               "compare": _cmd_compare, "plot": _cmd_plot, "sweep": _cmd_sweep,
+               "compile": _cmd_compile}[args.command]
     try:
         return handler(args)
     except KeyboardInterrupt:            # outside a run's steps (a run reports it itself)
@@ -175,6 +183,69 @@ def _cmd_check(args) -> int:
     return EXIT_OK
 
 
+#: the model ``lagamine-py compile`` runs with KERNEL=NUMBA: every branch of the solid kernel
+#: is compiled at its first call (the law, NLGEOM and axisymmetry are values, not types), so
+#: one small run compiles the machine code any later run loads.  <CONTACT> adds a foundation.
+COMPILE_DECK = """*MESH, NAME=B, TYPE=Q8PE, X0=0, Y0=0, LX=2, LY=1, NX=2, NY=1
+*MATERIAL, NAME=M, LAW=RAMBERG_OSGOOD
+E=210000, NU=0.3, SIGMA0=250, ALPHA=0.5, N=10
+*SOLID, ELSET=B, MATERIAL=M
+<CONTACT>*STEP, NAME=PRESS, NLGEOM=YES
+*STATIC
+0.5, 1, 0.01, 0.5
+*CONTROLS
+KERNEL=NUMBA
+*BOUNDARY
+B_LEFT, 1, 1, 0
+<FIX>B_TOP, 2, 2, -0.002
+*END STEP
+"""
+COMPILE_CONTACT = """*FOUNDATION, NAME=FLAT
+-10, 0
+0, 0
+10, 0
+*CONTACT LAW, NAME=DRY, TYPE=COULOMB
+KP=2e7, KT=2e7, PHI=0.2, B=0
+*CONTACT, SURFACE=B_BOTTOM, FOUNDATION=FLAT, LAW=DRY
+"""
+
+
+def _cmd_compile(args) -> int:
+    import logging
+    import tempfile
+    import time
+
+    from . import kernels
+    # the compile model's own advice (a cold cache, penalties) is nothing for the user to act on
+    logging.getLogger("lagamine_py.advice").addHandler(logging.NullHandler())
+    if not kernels.available():
+        print("lagamine-py compile: numba is not installed (pip install 'lagamine_py[fast]'); "
+              "runs use the NumPy kernels, nothing to compile", file=sys.stderr)
+        return EXIT_OTHER
+    from .deck import load_deck
+    from .solver import run
+    deck = COMPILE_DECK.replace("<CONTACT>", COMPILE_CONTACT if args.contact else "")
+    deck = deck.replace("<FIX>", "" if args.contact else "B_BOTTOM, 2, 2, 0\n")
+    t0 = time.process_time()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "compile.dat"
+        path.write_text(deck)
+        outcome = run(load_deck(path), Path(tmp) / "out", writers=[])
+    if outcome.status != 0:
+        print(f"lagamine-py compile: the compile model failed: {outcome.message}", file=sys.stderr)
+        return EXIT_OTHER
+    for name in ("solid", "contact") if args.contact else ("solid",):
+        for fn, info in kernels.cache_report(name).items():
+            how = "compiled" if info["misses"] else "already in the cache"
+            print(f"{name} kernel {fn}: {how} ({info['cache']})")
+            if info["misses"] and not any(Path(info["cache"]).glob("*.nbi")):
+                print(f"lagamine-py compile: numba could not write its cache in {info['cache']}: "
+                      f"set NUMBA_CACHE_DIR to a writable directory", file=sys.stderr)
+                return EXIT_OTHER
+    print(f"lagamine-py compile: done in {time.process_time() - t0:.1f} s of CPU")
+    return EXIT_OK
+
+
 @contextmanager
 def _advice_on_stderr():
     """Model advice on stderr while the block runs, as ``check`` prints it: the deck builder's
@@ -203,6 +274,8 @@ class _AdviceFormatter:
 
 
 def _cmd_run(args) -> int:
+    from .core.threads import pin_openblas_at_load
+    pin_openblas_at_load()                  # before numpy loads: no threadpoolctl needed
     from .solver import run
     from .solver.restart import RestartError, deck_of, load
 

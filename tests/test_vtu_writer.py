@@ -105,3 +105,11 @@ def test_an_empty_grid_is_a_valid_file(tmp_path):
     r.SetFileName(str(path))
     r.Update()
     assert not r.GetErrorCode() and r.GetOutput().GetNumberOfPoints() == 0
+
+
+@pytest.mark.parametrize("value", ["U", "a&b<c>", "say \"hi\"", "it's", "both ' and \"", "tab\tnew\nline\r"])
+def test_quoteattr_writes_what_saxutils_writes(value):
+    from xml.sax.saxutils import quoteattr as reference
+
+    from lagamine_py.output.vtk import quoteattr
+    assert quoteattr(value) == reference(value)

@@ -10,6 +10,8 @@ Sub-commands (run from the repository root, in the project's venv)::
     python tools/bench.py solvers [--sizes 20x10 40x20 ...]        # SPLU vs PARDISO crossover
     python tools/bench.py startup [--trees A B]                     # --help, check, run of
                                                                     # the main job, whole process
+    python tools/bench.py first-run [--size 80x40]                 # fresh numba cache vs warm,
+                                                                    # with and without `compile`
     python tools/bench.py vtu FILE.vtu                              # VTU encodings: time, size,
                                                                     # does meshio read it
     python tools/bench.py report --json F [--png P]                 # markdown table + plot
@@ -535,10 +537,15 @@ def _slide_tangent(nx: int, ny: int):
     return A, np.random.default_rng(0).standard_normal(A.shape[0])
 
 
-def bench_startup(repeat: int = 5, trees: list[Path] | None = None) -> list[dict]:
-    """Best whole-process wall time of ``lagamine-py --help``, ``check`` and ``run`` of the main
-    job (``decks/press_slide.dat``), each in a fresh interpreter, with the byte code compiled
-    (``PYTHONDONTWRITEBYTECODE`` unset, one run beforehand) as after an install.  ``trees``:
+def bench_startup(repeat: int = 5, trees: list[Path] | None = None,
+                  bytecode: bool = True) -> list[dict]:
+    """Best whole-process wall time, and the CPU time (user + system) and peak resident memory
+    of the same runs, of ``lagamine-py --help``, ``check`` and ``run`` of the main job
+    (``decks/press_slide.dat``), each in a fresh interpreter, with the byte code compiled
+    (``PYTHONDONTWRITEBYTECODE`` unset, one run beforehand) as after an install, or, with
+    ``bytecode=False``, as this machine's agents run (the variable set and a copy of each tree
+    without ``__pycache__``: every start compiles lagamine_py from source; numpy's and scipy's
+    byte code is the install's).  CPU time is what a loaded machine changes least.  ``trees``:
     source trees to compare (e.g. an export of an older commit), their runs interleaved so a
     shared machine's load falls on all alike; default this one."""
     trees = trees or [ROOT]
@@ -546,21 +553,79 @@ def bench_startup(repeat: int = 5, trees: list[Path] | None = None) -> list[dict
     jobs = {"help": ["--help"], "check": ["check", str(DECK)]}
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
+        run_trees = {t: t for t in trees}
+        if not bytecode:
+            # a copy of each tree's package without byte code, which none of the runs writes
+            env["PYTHONDONTWRITEBYTECODE"] = "1"
+            for k, t in enumerate(trees):
+                run_trees[t] = Path(tmp) / f"tree{k}"
+                shutil.copytree(Path(t) / "lagamine_py", run_trees[t] / "lagamine_py",
+                                ignore=shutil.ignore_patterns("__pycache__"))
         jobs["run"] = ["run", str(DECK), "-q", "--overwrite", "-o", str(Path(tmp) / "out")]
-        best = {(t, j): np.inf for t in trees for j in jobs}
+        best = {(t, j, k): np.inf for t in trees for j in jobs for k in ("wall", "cpu", "mb")}
         for i in range(repeat + 1):
             for t in trees:
                 for j, argv in jobs.items():
                     t0 = time.perf_counter()
-                    subprocess.run([sys.executable, "-m", "lagamine_py", *argv], check=True,
-                                   capture_output=True, cwd=tmp,
-                                   env=dict(env, PYTHONPATH=str(t)))
+                    proc = subprocess.Popen([sys.executable, "-m", "lagamine_py", *argv],
+                                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                            cwd=tmp, env=dict(env, PYTHONPATH=str(run_trees[t])))
+                    _, status, usage = os.wait4(proc.pid, 0)
+                    wall = time.perf_counter() - t0
+                    proc.returncode = os.waitstatus_to_exitcode(status)
+                    if proc.returncode:
+                        raise RuntimeError(f"{argv} in {t}: {proc.stderr.read().decode()}")
+                    proc.stderr.close()
                     if i:                                   # the first round compiles
-                        best[t, j] = min(best[t, j], time.perf_counter() - t0)
+                        for k, v in (("wall", wall), ("cpu", usage.ru_utime + usage.ru_stime),
+                                     ("mb", usage.ru_maxrss / 1024)):
+                            best[t, j, k] = min(best[t, j, k], v)
         for t in trees:
-            rows.append({"tree": str(t), **{j: best[t, j] for j in jobs},
-                         "load_average": os.getloadavg()})
+            rows.append({"tree": str(t), **{j: best[t, j, "wall"] for j in jobs},
+                         **{f"{j}_cpu": best[t, j, "cpu"] for j in jobs},
+                         **{f"{j}_peak_mb": best[t, j, "mb"] for j in jobs},
+                         "bytecode": bytecode, "load_average": os.getloadavg()})
     return rows
+
+
+def _process(argv: list[str], env: dict, cwd: str) -> dict:
+    """Wall time, CPU time (user + system) and peak resident MB of one child process."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd,
+                            env=env)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    err = proc.stderr.read().decode()
+    proc.stderr.close()
+    if os.waitstatus_to_exitcode(status):
+        raise RuntimeError(f"{argv}: {err}")
+    return {"wall": wall, "cpu": usage.ru_utime + usage.ru_stime, "peak_mb": usage.ru_maxrss / 1024}
+
+
+def bench_first_run(nx: int = 80, ny: int = 40) -> dict:
+    """A fresh install's first press-then-slide run against a warm one (issue 17 item 4): each
+    in its own process, one MKL thread (so the counts repeat), numba's cache in an empty
+    ``NUMBA_CACHE_DIR``: ``cold`` the first run as is (it compiles the solid kernel),
+    ``compile`` then ``after_compile`` the same with ``lagamine-py compile`` first, ``warm`` a
+    run on that cache.  Ratios to ``warm`` on CPU time, which the load of a shared machine
+    changes least, and on wall time."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env["MKL_NUM_THREADS"] = "1"
+    out = {"mesh": f"{nx}x{ny}"}
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "ps.dat").write_text(press_slide_deck(nx, ny))
+        run = [sys.executable, "-m", "lagamine_py", "run", "ps.dat", "-q", "--overwrite", "-o"]
+        compile_ = [sys.executable, "-m", "lagamine_py", "compile"]
+        a, b = dict(env, NUMBA_CACHE_DIR=f"{tmp}/cache_a"), dict(env, NUMBA_CACHE_DIR=f"{tmp}/cache_b")
+        out["cold"] = _process(run + ["out_a"], a, tmp)
+        out["compile"] = _process(compile_, b, tmp)
+        out["after_compile"] = _process(run + ["out_b"], b, tmp)
+        out["warm"] = _process(run + ["out_c"], b, tmp)
+    for k in ("cold", "after_compile"):
+        for q in ("cpu", "wall"):
+            out[f"{k}/warm {q}"] = out[k][q] / out["warm"][q]
+    out["load_average"] = os.getloadavg()
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -735,6 +800,10 @@ def main(argv=None) -> int:
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--trees", type=Path, nargs="+", help="source trees to compare (default: "
                    "this one), e.g. `git archive COMMIT | tar -x -C DIR`")
+    p.add_argument("--no-bytecode", action="store_true", help="with PYTHONDONTWRITEBYTECODE=1 "
+                   "(every start compiles lagamine_py from source)")
+    p = sub.add_parser("first-run")
+    p.add_argument("--size", type=_size, default=(80, 40))
     p = sub.add_parser("vtu")
     p.add_argument("file", type=Path, help="a body .vtu of a run (e.g. of `one 160 80 --keep DIR`)")
     p.add_argument("--repeat", type=int, default=12)
@@ -805,8 +874,11 @@ def main(argv=None) -> int:
         args.json.write_text(json.dumps(rows, indent=1))
         return
     if args.cmd == "startup":
-        for row in bench_startup(args.repeat, args.trees):
+        for row in bench_startup(args.repeat, args.trees, not args.no_bytecode):
             print(json.dumps(row))
+        return 0
+    if args.cmd == "first-run":
+        print(json.dumps(bench_first_run(*args.size), indent=1))
         return 0
     if args.cmd == "report":
         results = []

@@ -233,8 +233,10 @@ class SolidElement(Element):
 
     # -- the element computation --------------------------------------------------------------
     #: elements per chunk: the (e, q, 16, 16)-sized temporaries of a chunk stay in cache
-    #: (measured on press-slide Q8 NLGEOM: 1024 about 1.5x faster per element than 12800 at once)
-    chunk = 1024
+    #: (measured on press-slide Q8 NLGEOM: 1024 about 1.5x faster per element than 12800 at
+    #: once; 256 another 1.5x faster than 1024 at 800 and 3200 elements, with a third of the
+    #: temporaries: 8 instead of 22 MB at 800 elements -- issue 17, docs/performance.md)
+    chunk = 256
 
     def compute(self, u_new: np.ndarray, u_old: np.ndarray, state: dict[str, np.ndarray],
                 ctx: StepContext, tangent: bool = True) -> GroupResult:

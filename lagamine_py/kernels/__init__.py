@@ -24,14 +24,24 @@ round-off) and the contact kernel never (:data:`AUTO_CONTACT`).  A group then us
 its kernel where it has one (a law or foundation the kernel reproduces).
 
 :data:`calls` counts the calls of each kernel: tests use it to prove that a fast path ran.
+
+Compiled kernels are cached on disk by numba (``cache=True``): next to this package when its
+directory is writable, else in numba's per-user cache (``~/.cache/numba``), or wherever
+``NUMBA_CACHE_DIR`` says.  A first compile of the solid kernel costs about 10 s of CPU -- more
+than a whole warm 80x40 press-then-slide run -- so ``lagamine-py compile`` does it once, right
+after the install (README, "Install"); :func:`cache_report` says where the machine code lives
+and whether a run loaded or compiled it.
 """
 from __future__ import annotations
 
+import logging
 from collections import Counter
 from importlib import import_module
+from pathlib import Path
 from types import ModuleType
 
-__all__ = ["SETTINGS", "AUTO_NUMBA_ELEMENTS", "AUTO_CONTACT", "available", "module", "use_numba", "calls"]
+__all__ = ["SETTINGS", "AUTO_NUMBA_ELEMENTS", "AUTO_CONTACT", "available", "module", "use_numba", "calls",
+           "ENTRY_KERNELS", "cache_report"]
 
 SETTINGS = ("AUTO", "NUMPY", "NUMBA")
 #: KERNEL=AUTO uses numba from this many solid elements in the model.  Below it the kernels save
@@ -48,6 +58,10 @@ AUTO_CONTACT = False
 calls: Counter = Counter()
 
 _MODULES = ("solid", "contact")
+#: kernel module -> its compiled entry functions (the ones a run calls; their callees are
+#: compiled with them)
+ENTRY_KERNELS = {"solid": ("_solid_kernel", "_start_kernel"),
+                 "contact": ("_contact", "_faces", "_project")}
 _loaded: dict[str, ModuleType | None] = {}
 
 
@@ -61,7 +75,22 @@ def module(name: str) -> ModuleType | None:
             _loaded[name] = import_module(f"{__name__}.{name}")
         except ImportError:
             _loaded[name] = None
+        else:
+            _say_if_cold(name, _loaded[name])
     return _loaded[name]
+
+
+def _say_if_cold(name: str, mod: ModuleType) -> None:
+    """Tell (advice log, once per module) that numba is about to compile ``name``'s kernels:
+    its cache holds no index for an entry function, as after a fresh install."""
+    for fn in ENTRY_KERNELS[name]:
+        cache = Path(vars(mod)[fn].stats.cache_path)
+        if not any(cache.glob(f"{name}.{fn}-*.nbi")):
+            logging.getLogger("lagamine_py.advice").warning(
+                f"numba compiles the {name} kernel for this machine first (about 10 s, once; "
+                f"`lagamine-py compile{' --contact' if name == 'contact' else ''}` does it "
+                f"ahead, right after the install)")
+            return
 
 
 def available() -> bool:
@@ -88,3 +117,20 @@ def use_numba(setting: str, solid_elements: int, kind: str = "solid") -> bool:
     if kind == "contact" and not AUTO_CONTACT:
         return False
     return solid_elements >= AUTO_NUMBA_ELEMENTS and available()
+
+
+def cache_report(name: str) -> dict[str, dict]:
+    """For each entry function of kernel module ``name`` that this process has used: numba's
+    cache directory, and the signatures loaded from it (``hits``) and compiled (``misses``:
+    compiled because the cache had no machine code for them, or could not be written).
+    Empty without numba."""
+    mod = module(name)
+    if mod is None:
+        return {}
+    out = {}
+    for fn in ENTRY_KERNELS[name]:
+        stats = vars(mod)[fn].stats
+        if stats.cache_hits or stats.cache_misses:
+            out[fn] = {"cache": stats.cache_path, "hits": sum(stats.cache_hits.values()),
+                       "misses": sum(stats.cache_misses.values())}
+    return out

@@ -55,9 +55,7 @@ from __future__ import annotations
 import base64
 import os
 import re
-import xml.etree.ElementTree as ET
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -66,6 +64,21 @@ from ..core.tensors import von_mises
 from ..foundation import Foundation
 from .base import CellBlock, IncrementResult, Writer
 from .recovery import RecoveryPlan, nodal_values
+
+
+_ATTR_ESCAPES = {"&": "&amp;", "<": "&lt;", ">": "&gt;", "\n": "&#10;", "\r": "&#13;", "\t": "&#9;"}
+
+
+def quoteattr(value: str) -> str:
+    """``value`` as a quoted XML attribute value, exactly as ``xml.sax.saxutils.quoteattr``
+    writes it (whose import pulls in urllib, http and ssl: 0.02 s of a short run)."""
+    value = "".join(_ATTR_ESCAPES.get(c, c) for c in value)
+    if '"' not in value:
+        return f'"{value}"'
+    if "'" not in value:
+        return f"'{value}'"
+    return '"' + value.replace('"', "&quot;") + '"'
+
 
 VTK_VERTEX, VTK_LINE = 1, 3
 SAMPLES_PER_ARC = 16
@@ -251,6 +264,7 @@ def _write_vtu(grid: _Grid, path: Path) -> None:
 
 def read_pvd(path: Path) -> list[tuple[float, int, str, str]]:
     """(timestep, part, file, name) of each DataSet of a PVD file."""
+    import xml.etree.ElementTree as ET      # only to resume a series
     root = ET.parse(path).getroot()
     return [(float(d.get("timestep", 0)), int(d.get("part", 0)), d.get("file", ""),
              d.get("name", "")) for d in root.iter("DataSet")]

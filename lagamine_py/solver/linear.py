@@ -24,12 +24,12 @@ import logging
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .. import registry
 from ..core.errors import SingularMatrixError
 from ..core.plugin import Plugin
 from ..core.threads import pin_threads
+from .superlu import splu
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
@@ -114,7 +114,7 @@ class SpluSolver(LinearSolver):
         At = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
         scale = np.abs(A.diagonal()).max() if A.shape[0] else 0.0
         try:
-            self.lu = spla.splu(At, permc_spec="MMD_AT_PLUS_A")
+            self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
         except RuntimeError:                # "Factor is exactly singular"
             raise SingularMatrixError(_exact_singular_dofs(At, scale), "zero pivot") from None
         # Pr A Pc = L U with Pc[j, perm_c[j]] = 1: original column j has pivot U[perm_c[j]]
@@ -133,7 +133,7 @@ def _exact_singular_dofs(At: sp.csc_matrix, scale: float) -> np.ndarray:
     of the singular directions come out of the order of the shift."""
     shift = 1e-10 * (scale if scale > 0 else 1.0)
     try:
-        lu = spla.splu((At + shift * sp.eye(At.shape[0], format="csc")).tocsc(),
+        lu = splu((At + shift * sp.eye(At.shape[0], format="csc")).tocsc(),
                        permc_spec="MMD_AT_PLUS_A")
     except RuntimeError:
         return _suspects(At.T.tocsr())

@@ -1,0 +1,61 @@
+"""What a short run loads (issue 17 item 3): the main job imports no module it does not use.
+
+Each module below cost a measurable part of the main job's 0.9 s (``docs/performance.md``,
+"Start-up, first run, memory"); the run is done in a fresh interpreter and its ``sys.modules``
+read at the end.
+"""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: never needed by ``lagamine-py run`` of a small deck
+NOT_LOADED = (
+    "numba", "llvmlite",                    # KERNEL=AUTO below AUTO_NUMBA_ELEMENTS
+    "vtk", "vtkmodules", "meshio",          # our own VTU writer
+    "matplotlib",
+    "pypardiso",                            # MKL is found by ctypes
+    "scipy.sparse.linalg", "scipy.linalg",  # SuperLU loaded by file (solver.superlu)
+    "threadpoolctl",                        # OPENBLAS_NUM_THREADS set before numpy loads
+    "xml.sax", "urllib.request",            # the VTU attribute quoting is ours
+)
+
+_SCRIPT = """
+import json, os, sys
+from lagamine_py.cli import main
+status = main(["run", sys.argv[1], "-q", "--overwrite", "-o", sys.argv[2]])
+loaded = sorted(m for m in sys.modules if m.split(".")[0] in {n.split(".")[0] for n in %r})
+import threadpoolctl
+blas = [i["num_threads"] for i in threadpoolctl.threadpool_info() if i["internal_api"] == "openblas"]
+print(json.dumps({"status": status, "loaded": loaded, "openblas_threads": blas}))
+"""
+
+
+@pytest.fixture(scope="module")
+def main_job(tmp_path_factory):
+    out = tmp_path_factory.mktemp("main_job")
+    env = {k: v for k, v in __import__("os").environ.items()
+           if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "LAGAMINE_THREADS")}
+    res = subprocess.run([sys.executable, "-c", _SCRIPT % (NOT_LOADED,),
+                          str(ROOT / "decks" / "press_slide.dat"), str(out / "run")],
+                         capture_output=True, text=True, env=env, cwd=out)
+    assert res.returncode == 0, res.stderr
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def test_the_main_job_runs(main_job):
+    assert main_job["status"] == 0
+
+
+@pytest.mark.parametrize("name", NOT_LOADED)
+def test_the_main_job_does_not_import(main_job, name):
+    assert name not in main_job["loaded"]        # a package, so any of its modules loads it
+
+
+def test_openblas_has_one_thread_without_threadpoolctl(main_job):
+    """The environment variable set before numpy loads did what pin_threads did."""
+    assert main_job["openblas_threads"] and set(main_job["openblas_threads"]) == {1}
