@@ -447,10 +447,13 @@ class SolidElement(Element):
         flags = np.empty(ne, np.int8)
         u_new, u_old = _kernel_array(u_new, u_new.shape), _kernel_array(u_old, u_old.shape)
         old, bad_old = self._kernel_start(u_old, eps_e_n) if ctx.nlgeom else _NO_START
+        # the pattern's own index type (int32 up to 2**31 entries): one compiled signature,
+        # and no int64 copy of the positions (13M entries at 309k DOFs) per evaluation
+        positions = np.asarray(positions)
         if tangent:
-            pos = np.asarray(positions, np.int64).reshape(ne, nd, nd)
+            pos = positions.reshape(ne, nd, nd)
         else:
-            data, pos = np.empty(0), np.empty((0, 0, 0), np.int64)
+            data, pos = np.empty(0), np.empty((0, 0, 0), positions.dtype)
         nk.solid_group(bool(ctx.nlgeom), bool(tangent), bool(self.axisymmetric), kind, lp, Del,
                        conn, u_new, u_old, N, dNdX, R0, w0, eps_e_n, peeq_n, old, bad_old,
                        new_state["eps_e"], new_state["peeq"], new_state["stress"], fe, flags,
