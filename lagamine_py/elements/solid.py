@@ -338,12 +338,15 @@ class SolidElement(Element):
         return F, np.ones_like(self.R0), self.R0
 
     def _dNdX_flat(self) -> np.ndarray:
-        """``dNdX`` as (e, a, q j), contiguous (cached)."""
+        """``dNdX`` as (e, a, q j), contiguous (cached, except for a fused group: its kernel
+        reads ``dNdX``, and the copy -- as large, 59 MB at 51k Q8 -- serves only the output's
+        strains, once per increment)."""
         flat = self._cache.get("dNdX_flat")
         if flat is None:
             ne, nq, na, _ = self.dNdX.shape
             flat = np.ascontiguousarray(self.dNdX.transpose(0, 2, 1, 3)).reshape(ne, na, 2 * nq)
-            self._cache["dNdX_flat"] = flat
+            if not self.fused:
+                self._cache["dNdX_flat"] = flat
         return flat
 
     def _start_of_increment(self, ue_old, eps_e_n):

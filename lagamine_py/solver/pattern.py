@@ -32,7 +32,7 @@ class Pattern:
     indptr, indices : CSR structure (sorted, unique columns per row).
     nnz : int
     positions : list of (e*nd*nd,) arrays, where each group's block entries land in ``data``.
-    rows : (nnz,) row of each ``data`` entry (reductions, diagnostics).
+    rows : (nnz,) row of each ``data`` entry (built when asked: once per constrained set).
 
     The index arrays are int32 while the pattern's size allows (:func:`index_dtype`): half
     the memory of int64, the largest arrays of a run after the factor (at 309k DOFs the
@@ -54,13 +54,18 @@ class Pattern:
         rows, cols = np.divmod(uniq, self.ndof)
         del uniq
         self.indices = cols.astype(itype)
-        self.rows = rows.astype(itype)
-        del rows, cols
         self.indptr = np.zeros(self.ndof + 1, dtype=itype)
-        np.cumsum(np.bincount(self.rows, minlength=self.ndof), out=self.indptr[1:])
+        np.cumsum(np.bincount(rows, minlength=self.ndof), out=self.indptr[1:])
+        del rows, cols
         inverse = inverse.ravel().astype(itype)
         splits = np.cumsum(sizes)[:-1]
         self.positions = np.split(inverse, splits) if sizes else []
+
+    @property
+    def rows(self) -> np.ndarray:
+        """(nnz,) row of each ``data`` entry, from ``indptr`` (not kept: as large as
+        ``indices``, and needed only when the free DOFs are set up)."""
+        return np.repeat(np.arange(self.ndof, dtype=self.indices.dtype), np.diff(self.indptr))
 
     def _block_keys(self, dofs: np.ndarray) -> np.ndarray:
         """Row-major keys ``row*ndof + col`` of every (e, a, b) block entry, flattened."""
