@@ -119,11 +119,15 @@ class _Stop(Exception):
 
 
 def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
-            max_increments: int | None = None, kernel: str = "AUTO") -> dict:
+            max_increments: int | None = None, kernel: str = "AUTO",
+            numba_from: int | None = None) -> dict:
     """Run press-then-slide at ``nx`` x ``ny``; return the measurements (a JSON-able dict).
 
     ``max_increments`` stops the run after that many converged increments (status
-    ``"truncated"``): the time per iteration is measured, not that the whole run converges."""
+    ``"truncated"``): the time per iteration is measured, not that the whole run converges.
+    ``numba_from``: ``KERNEL=AUTO``'s threshold of solid elements for this run
+    (``kernels.AUTO_NUMBA_ELEMENTS``): what AUTO would do with another threshold."""
+    from lagamine_py import kernels
     from lagamine_py.deck import load_deck
     from lagamine_py.output import default_writers
     from lagamine_py.solver import linear as linear_mod
@@ -142,6 +146,8 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     for step in model.steps:
         step.controls["SOLVER"] = solver
         step.controls["KERNEL"] = kernel
+    if numba_from is not None:
+        kernels.AUTO_NUMBA_ELEMENTS = numba_from
     t0 = time.perf_counter()
     problem = problem_mod.build_problem(model)
     t_build = time.perf_counter() - t0
@@ -267,7 +273,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         "status": status, "message": message,
         "increments": timers.n["vtk"], "iterations": iters,
         "bulk_evaluations": timers.n["bulk"],
-        "solver": solver, "kernel": kernel,
+        "solver": solver, "kernel": kernel, "numba_from": kernels.AUTO_NUMBA_ELEMENTS,
         "fused_groups": int(sum(g.fused for g in problem.groups)),
         "solver_used": sorted(used), "pardiso_analyses": int(sum(analyses.values())),
         "pardiso_memory_mb": pardiso_memory,
@@ -777,6 +783,8 @@ def main(argv=None) -> int:
     p.add_argument("--keep", help="work directory to keep (deck and output)")
     p.add_argument("--max-increments", type=int)
     p.add_argument("--kernel", default="AUTO", choices=("AUTO", "NUMPY", "NUMBA"))
+    p.add_argument("--numba-from", type=int, help="KERNEL=AUTO's solid-element threshold "
+                   "for this run (kernels.AUTO_NUMBA_ELEMENTS)")
     p = sub.add_parser("assembly")
     p.add_argument("--nx", type=int, default=160)
     p.add_argument("--ny", type=int, default=80)
@@ -803,7 +811,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     if args.cmd == "one":
-        res = run_one(args.nx, args.ny, args.solver, args.keep, args.max_increments, args.kernel)
+        res = run_one(args.nx, args.ny, args.solver, args.keep, args.max_increments, args.kernel,
+                      args.numba_from)
         text = json.dumps(res, indent=1)
         if args.json:
             args.json.write_text(text)

@@ -342,12 +342,16 @@ class PardisoSolver(LinearSolver):
             raise _PardisoError(err.value)
 
     def _release(self) -> None:
+        """Free PARDISO's factor and analysis (phase -1), and MKL's pool of freed buffers:
+        MKL keeps them for reuse, and a new analysis of another size (the next step's free
+        DOFs) would allocate beside them (measured: 40 of 240 MB at 77k DOFs kept)."""
         if self.mtype:
             try:
                 self._pardiso(-1, np.zeros(1), self._ia, self._ja)
             except _PardisoError:
                 pass
             self.mtype = 0
+            _mkl_library().mkl_free_buffers()
 
     def __del__(self):
         try:
