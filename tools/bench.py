@@ -190,6 +190,11 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
                 pardiso_memory["factor_mb"] = max(pardiso_memory["factor_mb"],
                                                   (self.iparm[15] + self.iparm[16]) / 1024.0)
     linear_mod.PardisoSolver._pardiso = pardiso
+    orig_symmetric = linear_mod.PardisoSolver.is_symmetric      # inside factor: its share
+
+    def is_symmetric(self, A):
+        return timers.call("symmetry_test", orig_symmetric, self, A)
+    linear_mod.PardisoSolver.is_symmetric = is_symmetric
 
     def make_solver(name):
         s = orig_make(name)
@@ -254,6 +259,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     FreeDofs.kff = orig_kff
     steps_mod.make_solver = orig_make
     linear_mod.PardisoSolver._pardiso = orig_pardiso
+    linear_mod.PardisoSolver.is_symmetric = orig_symmetric
     steps_mod.Controller._save_restart = orig_save
 
     if not keep:
