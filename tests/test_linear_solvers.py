@@ -372,6 +372,32 @@ def test_pardiso_analyses_of_a_run_are_its_structure_and_mode_changes(tmp_path, 
     assert changes < len(seen) // 4
 
 
+@needs_pardiso
+def test_mkl_is_looked_up_once_per_process(tangents, monkeypatch):
+    """MKL's runtime is found and loaded once, however many PARDISO solvers a process makes (a
+    run makes one per solver name, a sweep many), and pypardiso -- which searches the file tree
+    at import and in every solver object -- is never imported."""
+    import ctypes
+    import sys
+
+    loads = []
+    real = ctypes.CDLL
+
+    def counting(path, *a, **k):
+        if "mkl_rt" in str(path):
+            loads.append(path)
+        return real(path, *a, **k)
+    linear._mkl_library.cache_clear()
+    monkeypatch.setattr(ctypes, "CDLL", counting)
+    A, b = tangents["nonsym"], tangents["b"]
+    for _ in range(3):
+        p = linear.PardisoSolver()
+        p.factor(A)
+        assert _rel_residual(A, p.solve(b), b) < 1e-10
+    assert len(loads) == 1, loads
+    assert "pypardiso" not in sys.modules
+
+
 def test_openblas_pinned_to_one_thread():
     """Importing the solver limits every loaded OpenBLAS to one thread (the policy of
     lagamine_py/_threads.py), and leaves MKL alone."""
