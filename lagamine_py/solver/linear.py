@@ -63,8 +63,9 @@ class FreeDofs:
         # index arrays of one integer type (int32 while it holds them): scipy keeps them as they
         # are, so every K_ff shares the same two arrays and a solver recognises its structure
         # by identity (a mixed pair was recast, i.e. copied and compared, every iteration)
+        # (``ff`` itself stays intp: a gather by int32 indices converts them first, +50 %)
         itype = index_dtype(max(pattern.nnz, n + 1))
-        self.ff = np.flatnonzero(row_free & col_free).astype(itype)
+        self.ff = np.flatnonzero(row_free & col_free)
         self.ff_indices = new_index[cols[self.ff]].astype(itype)
         self.ff_indptr = np.zeros(self.nfree + 1, itype)
         np.cumsum(np.bincount(new_index[rows[self.ff]], minlength=self.nfree), out=self.ff_indptr[1:])
@@ -286,7 +287,7 @@ class PardisoSolver(LinearSolver):
         else:
             self._tperm = None
         del T
-        self._upper = np.flatnonzero(A.indices >= rows).astype(itype)
+        self._upper = np.flatnonzero(A.indices >= rows)       # intp: gathered per factor
         up_rows = rows[self._upper]
         # zero-based indexing (iparm[34] = 1): A's own index arrays, no one-based copies
         self._ia_full = np.ascontiguousarray(A.indptr, dtype=np.int32)
