@@ -299,6 +299,105 @@ def test_pardiso_analysis_kept_across_steps_with_the_same_free_dofs(tmp_path, mo
     assert counts[1][0] == counts[0][0] and counts[1][1] > counts[0][1], counts
 
 
+@needs_pardiso
+def test_pardiso_analysis_kept_across_a_rebuilt_pattern(tangents):
+    """A pattern rebuilt from the same element DOFs (what a two-body re-pairing that lands on the
+    same windows does, ``Problem.refresh``) gives new index arrays with the same structure: the
+    analysis is kept.  Different couplings (a group's DOFs changed): a new analysis.  Within
+    one ``FreeDofs`` every ``K_ff`` reads the very same index buffers (no comparison needed)."""
+    from lagamine_py.solver.pattern import Pattern
+
+    model = load_deck(DECKS / "press_slide.dat")
+    problem = build_problem(model)
+    pattern = problem.pattern
+    right = 2 * np.flatnonzero(model.coords[:, 0] > 40 - 1e-9)
+    free = FreeDofs(pattern, right)
+    rng = np.random.default_rng(2)
+    data = rng.random(pattern.nnz) + pattern.ndof * (pattern.rows == pattern.indices)
+    A = free.kff(data)
+    again = free.kff(2.0 * data)
+    assert linear._same_buffer(again.indices, A.indices)
+    assert linear._same_buffer(again.indptr, A.indptr)
+    p = linear.PardisoSolver(symmetric=False)
+    p.factor(A)
+    rebuilt = Pattern(pattern.ndof, pattern.dofs)
+    assert rebuilt.positions[0] is not pattern.positions[0]
+    B = FreeDofs(rebuilt, right).kff(data)
+    assert B.indices.ctypes.data != A.indices.ctypes.data
+    p.factor(B)
+    b = np.ones(B.shape[0])
+    assert (p.analyses, p.factorizations) == (1, 2)
+    assert _rel_residual(B, p.solve(b), b) < 1e-10
+    # one element coupled to a node it did not touch: another structure, a new analysis
+    dofs = [d.copy() for d in pattern.dofs]
+    far = int(np.setdiff1d(np.arange(pattern.ndof // 2), dofs[0][0] // 2)[-1])
+    dofs[0][0, :2] = 2 * far, 2 * far + 1
+    changed = Pattern(pattern.ndof, dofs)
+    C = FreeDofs(changed, right).kff(rng.random(changed.nnz)
+                                      + changed.ndof * (changed.rows == changed.indices))
+    p.factor(C)
+    assert p.analyses == 2
+
+
+@needs_pardiso
+def test_pardiso_analyses_of_a_run_are_its_structure_and_mode_changes(tmp_path, monkeypatch):
+    """A whole run (press_slide.dat, two steps with different constraints, contact switching
+    the tangent between symmetric and not) analyses exactly when the structure of ``K_ff``
+    or the mode changes from one factorisation to the next -- the changes counted here from
+    the matrices themselves (their index arrays, and ``|A - A^T|`` over the whole matrix) --
+    and never otherwise: every other Newton iteration pays the numerical factorisation only."""
+    from lagamine_py.solver import run, steps
+
+    seen = []
+
+    class Recording(linear.PardisoSolver):
+        def factor(self, A):
+            sym = abs(A - A.T).max() <= self.SYM_RTOL * abs(A).max()
+            seen.append((A.indptr.tobytes() + A.indices.tobytes(), bool(sym)))
+            super().factor(A)
+
+    made = []
+
+    def recording(name):
+        made.append(Recording())
+        return made[-1]
+    monkeypatch.setattr(steps, "make_solver", recording)
+    model = load_deck(DECKS / "press_slide.dat")
+    outcome = run(model, tmp_path / "out", writers=[])
+    assert outcome.status == 0, outcome.message
+    assert len(made) == 1
+    changes = sum(1 for k, key in enumerate(seen) if k == 0 or key != seen[k - 1])
+    assert made[0].factorizations == len(seen) > 20
+    assert made[0].analyses == changes
+    assert changes < len(seen) // 4
+
+
+@needs_pardiso
+def test_mkl_is_looked_up_once_per_process(tangents, monkeypatch):
+    """MKL's runtime is found and loaded once, however many PARDISO solvers a process makes (a
+    run makes one per solver name, a sweep many), and pypardiso -- which searches the file tree
+    at import and in every solver object -- is never imported."""
+    import ctypes
+    import sys
+
+    loads = []
+    real = ctypes.CDLL
+
+    def counting(path, *a, **k):
+        if "mkl_rt" in str(path):
+            loads.append(path)
+        return real(path, *a, **k)
+    linear._mkl_library.cache_clear()
+    monkeypatch.setattr(ctypes, "CDLL", counting)
+    A, b = tangents["nonsym"], tangents["b"]
+    for _ in range(3):
+        p = linear.PardisoSolver()
+        p.factor(A)
+        assert _rel_residual(A, p.solve(b), b) < 1e-10
+    assert len(loads) == 1, loads
+    assert "pypardiso" not in sys.modules
+
+
 def test_openblas_pinned_to_one_thread():
     """Importing the solver limits every loaded OpenBLAS to one thread (the policy of
     lagamine_py/_threads.py), and leaves MKL alone."""

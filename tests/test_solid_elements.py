@@ -280,6 +280,25 @@ def test_gauss_coords_follow_the_displacement():
     assert xg.shape == (4, 9, 2) and xg.min() > 0 and xg.max() < 2
 
 
+@pytest.mark.parametrize("name", ["Q8PE", "Q8AX", "Q4PE"])
+@pytest.mark.parametrize("nlgeom", [True, False])
+def test_total_strain_by_chunks(name, nlgeom):
+    """The output's total strain of a homogeneous stretch u = (F - I) X, F = diag(1.1, 0.95):
+    ln 1.1, ln 0.95 (NLGEOM, Hencky) or 0.1, -0.05 (small strain) in-plane, the hoop strain
+    ln(r/R) = ln 1.1 (0.1) in axisymmetry, no shear -- computed by chunks of one element
+    (as a group larger than ``chunk`` is) and for the whole group at once: the same values."""
+    coords, conn, _ = patch(8 if name.startswith("Q8") else 4, x0=1.0)
+    g = group_of(name, coords, conn, elastic())
+    u = coords * [0.1, -0.05]
+    bent = u + 0.02 * coords[:, ::-1] ** 2          # element by element different strains
+    whole = g.total_strain(bent, nlgeom)
+    g.chunk = 1
+    assert np.array_equal(g.total_strain(bent, nlgeom), whole)
+    e11, e22 = (np.log(1.1), np.log(0.95)) if nlgeom else (0.1, -0.05)
+    e33 = e11 if g.axisymmetric else 0.0
+    assert np.allclose(g.total_strain(u, nlgeom), [e11, e22, e33, 0.0], rtol=0, atol=1e-12)
+
+
 # --------------------------------------------------------------------------------------------
 # what the contract suite (lagamine_py.contracts) cannot know: the built-ins' faces as the
 # Abaqus manual lists them (the whole-element Jacobian check: tests/test_jacobian.py)

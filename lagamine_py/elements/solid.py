@@ -198,7 +198,20 @@ class SolidElement(Element):
     def total_strain(self, u: np.ndarray, nlgeom: bool) -> np.ndarray:
         """Strain 4-vectors [e11, e22, e33, g12] (engineering shear, as the laws) (e, q, 4) of
         the nodal displacements ``u`` (n, 2): Hencky ``1/2 ln(F F^T)`` when ``nlgeom``, else
-        ``sym grad u`` (the operator of :meth:`_small_strain`)."""
+        ``sym grad u`` (the operator of :meth:`_small_strain`).
+
+        Computed by chunks of :attr:`chunk` elements, as :meth:`compute` (the same values: every
+        operation is per element): the NLGEOM temporaries of a whole group are ~25 of its
+        (e, q) arrays, 0.3 GB at 51k Q8, and the output asks for them while the factor is held."""
+        ne = len(self.conn)
+        if ne <= self.chunk:
+            return self._total_strain(u, nlgeom)
+        out = np.empty((ne, self.nq, 4))
+        for sl, view in self._chunk_views():
+            out[sl] = view._total_strain(u, nlgeom)
+        return out
+
+    def _total_strain(self, u, nlgeom):
         ue = np.asarray(u, float)[self.conn]                              # (e, a, 2)
         if nlgeom:
             F, F33, _ = self._deformation(ue)
@@ -340,12 +353,15 @@ class SolidElement(Element):
         return F, np.ones_like(self.R0), self.R0
 
     def _dNdX_flat(self) -> np.ndarray:
-        """``dNdX`` as (e, a, q j), contiguous (cached)."""
+        """``dNdX`` as (e, a, q j), contiguous (cached, except for a fused group: its kernel
+        reads ``dNdX``, and the copy -- as large, 59 MB at 51k Q8 -- serves only the output's
+        strains, once per increment)."""
         flat = self._cache.get("dNdX_flat")
         if flat is None:
             ne, nq, na, _ = self.dNdX.shape
             flat = np.ascontiguousarray(self.dNdX.transpose(0, 2, 1, 3)).reshape(ne, na, 2 * nq)
-            self._cache["dNdX_flat"] = flat
+            if not self.fused:
+                self._cache["dNdX_flat"] = flat
         return flat
 
     def _start_of_increment(self, ue_old, eps_e_n):
@@ -449,10 +465,13 @@ class SolidElement(Element):
         flags = np.empty(ne, np.int8)
         u_new, u_old = _kernel_array(u_new, u_new.shape), _kernel_array(u_old, u_old.shape)
         old, bad_old = self._kernel_start(u_old, eps_e_n) if ctx.nlgeom else _NO_START
+        # the pattern's own index type (int32 up to 2**31 entries): one compiled signature,
+        # and no int64 copy of the positions (13M entries at 309k DOFs) per evaluation
+        positions = np.asarray(positions)
         if tangent:
-            pos = np.asarray(positions, np.int64).reshape(ne, nd, nd)
+            pos = positions.reshape(ne, nd, nd)
         else:
-            data, pos = np.empty(0), np.empty((0, 0, 0), np.int64)
+            data, pos = np.empty(0), np.empty((0, 0, 0), positions.dtype)
         nk.solid_group(bool(ctx.nlgeom), bool(tangent), bool(self.axisymmetric), kind, lp, Del,
                        conn, u_new, u_old, N, dNdX, R0, w0, eps_e_n, peeq_n, old, bad_old,
                        new_state["eps_e"], new_state["peeq"], new_state["stress"], fe, flags,

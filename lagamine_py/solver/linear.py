@@ -29,6 +29,7 @@ from .. import registry
 from ..core.errors import SingularMatrixError
 from ..core.plugin import Plugin
 from ..core.threads import pin_threads
+from .pattern import index_dtype
 from .superlu import splu
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
@@ -58,10 +59,15 @@ class FreeDofs:
         new_index[self.free] = np.arange(self.nfree)
         rows, cols = pattern.rows, pattern.indices
         row_free, col_free = is_free[rows], is_free[cols]
-        # K_ff: its entries, in CSR order of the full pattern, are in CSR order of K_ff too
+        # K_ff: its entries, in CSR order of the full pattern, are in CSR order of K_ff too;
+        # index arrays of one integer type (int32 while it holds them): scipy keeps them as they
+        # are, so every K_ff shares the same two arrays and a solver recognises its structure
+        # by identity (a mixed pair was recast, i.e. copied and compared, every iteration)
+        # (``ff`` itself stays intp: a gather by int32 indices converts them first, +50 %)
+        itype = index_dtype(max(pattern.nnz, n + 1))
         self.ff = np.flatnonzero(row_free & col_free)
-        self.ff_indices = new_index[cols[self.ff]].astype(np.int32)
-        self.ff_indptr = np.zeros(self.nfree + 1, np.int64)
+        self.ff_indices = new_index[cols[self.ff]].astype(itype)
+        self.ff_indptr = np.zeros(self.nfree + 1, itype)
         np.cumsum(np.bincount(new_index[rows[self.ff]], minlength=self.nfree), out=self.ff_indptr[1:])
         self.ff_diag = np.flatnonzero(row_free & col_free & (rows == cols))
         self.diag_dof = rows[self.ff_diag]
@@ -71,9 +77,14 @@ class FreeDofs:
         self.fc_col = cols[self.fc]
 
     def kff(self, data: np.ndarray) -> sp.csr_matrix:
-        """``K_ff`` as CSR from the full CSR ``data``."""
-        return sp.csr_matrix((data[self.ff], self.ff_indices, self.ff_indptr),
-                             shape=(self.nfree, self.nfree))
+        """``K_ff`` as CSR from the full CSR ``data``: new values, the structure arrays
+        ``ff_indices``/``ff_indptr`` themselves (sorted, no duplicates: flagged so, not
+        re-checked)."""
+        A = sp.csr_matrix((data[self.ff], self.ff_indices, self.ff_indptr),
+                          shape=(self.nfree, self.nfree), copy=False)
+        A.has_sorted_indices = True
+        A.has_canonical_format = True
+        return A
 
     def kfc_dot(self, data: np.ndarray, du_full: np.ndarray) -> np.ndarray:
         """``K_fc @ du_c`` (nfree,), ``du_full`` a global (ndof,) vector read at constrained DOFs."""
@@ -251,7 +262,7 @@ class PardisoSolver(LinearSolver):
         if self._struct is None:
             return False
         indptr, indices = self._struct
-        if A.indptr is indptr and A.indices is indices:
+        if _same_buffer(A.indptr, indptr) and _same_buffer(A.indices, indices):
             return True
         return (A.shape[0] == self.n and np.array_equal(A.indptr, indptr)
                 and np.array_equal(A.indices, indices))
@@ -270,17 +281,19 @@ class PardisoSolver(LinearSolver):
         T = sp.csr_matrix((np.arange(A.nnz, dtype=np.float64), A.indices, A.indptr),
                           shape=A.shape).T.tocsr()
         T.sort_indices()
+        itype = index_dtype(A.nnz)
         if np.array_equal(T.indptr, A.indptr) and np.array_equal(T.indices, A.indices):
-            self._tperm = T.data.astype(np.int64)
+            self._tperm = T.data.astype(itype)
         else:
             self._tperm = None
-        self._upper = np.flatnonzero(A.indices >= rows)
+        del T
+        self._upper = np.flatnonzero(A.indices >= rows)       # intp: gathered per factor
         up_rows = rows[self._upper]
-        self._ia_full = (A.indptr.astype(np.int32) + 1)
-        self._ja_full = (A.indices.astype(np.int32) + 1)
+        # zero-based indexing (iparm[34] = 1): A's own index arrays, no one-based copies
+        self._ia_full = np.ascontiguousarray(A.indptr, dtype=np.int32)
+        self._ja_full = np.ascontiguousarray(A.indices, dtype=np.int32)
         self._ia_sym = np.zeros(n + 1, np.int32)
         np.cumsum(np.bincount(up_rows, minlength=n), out=self._ia_sym[1:])
-        self._ia_sym += 1
         self._ja_sym = self._ja_full[self._upper]
         self.mtype = 0                                   # force an analysis
 
@@ -330,12 +343,16 @@ class PardisoSolver(LinearSolver):
             raise _PardisoError(err.value)
 
     def _release(self) -> None:
+        """Free PARDISO's factor and analysis (phase -1), and MKL's pool of freed buffers:
+        MKL keeps them for reuse, and a new analysis of another size (the next step's free
+        DOFs) would allocate beside them (measured: 40 of 240 MB at 77k DOFs kept)."""
         if self.mtype:
             try:
                 self._pardiso(-1, np.zeros(1), self._ia, self._ja)
             except _PardisoError:
                 pass
             self.mtype = 0
+            _mkl_library().mkl_free_buffers()
 
     def __del__(self):
         try:
@@ -385,13 +402,17 @@ class PardisoSolver(LinearSolver):
           pivots, and :meth:`solve`'s residual test stays the guard against a singular matrix;
         * the two-level factorisation (``iparm[23] = 10``, which PARDISO reads only with
           ``iparm[0] = 1``) when :attr:`TWO_LEVEL`: measured on the press-slide tangents
-          (``tools/bench.py pardiso``, docs/performance.md) with one and two threads."""
+          (``tools/bench.py pardiso``, docs/performance.md) with one and two threads.
+
+        And zero-based indices (``iparm[34] = 1``): PARDISO reads ``K_ff``'s own index arrays
+        (one-based copies were 40 MB at 309k DOFs)."""
         self.iparm[:] = 0
         _mkl_library().pardisoinit(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
                                    ctypes.byref(ctypes.c_int32(self.mtype)),
                                    self.iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
         self.iparm[0] = 1
         self.iparm[7] = 0
+        self.iparm[34] = 1                  # zero-based ia, ja (CSR arrays as scipy has them)
         if self.TWO_LEVEL:
             self.iparm[23] = 10
 
@@ -406,11 +427,21 @@ class PardisoSolver(LinearSolver):
             raise SingularMatrixError(_singular_dofs(self._A), "PARDISO returned a non-finite solution")
         # PARDISO perturbs zero pivots instead of failing: a singular matrix comes back
         # "solved" with a large residual.  One product with A (cheap next to the factor) tells.
+        # (Not only when iparm[13] reports perturbed pivots: a singular symmetric tangent's
+        # round-off pivot passes unperturbed, tests/test_linear_solvers.py.)
         bnorm = np.linalg.norm(b)
         if np.linalg.norm(self._A @ x - b) > SOLVE_RTOL * bnorm:
             raise SingularMatrixError(_singular_dofs(self._A), "PARDISO: residual of the solve too "
                                       "large (perturbed zero pivots)")
         return x
+
+
+def _same_buffer(a: np.ndarray, b: np.ndarray) -> bool:
+    """``a`` reads the very memory of ``b`` (held alive by the caller, so no other array can
+    have its address): the same object, or a whole view of it, as scipy hands out for the index
+    arrays it was given (``FreeDofs.kff``)."""
+    return a is b or (a.shape == b.shape and a.dtype == b.dtype and a.strides == b.strides
+                      and a.ctypes.data == b.ctypes.data)
 
 
 class _PardisoError(RuntimeError):

@@ -32,23 +32,40 @@ class Pattern:
     indptr, indices : CSR structure (sorted, unique columns per row).
     nnz : int
     positions : list of (e*nd*nd,) arrays, where each group's block entries land in ``data``.
+    rows : (nnz,) row of each ``data`` entry (built when asked: once per constrained set).
+
+    The index arrays are int32 while the pattern's size allows (:func:`index_dtype`): half
+    the memory of int64, the largest arrays of a run after the factor (at 309k DOFs the
+    positions alone are 13M entries).
     """
 
     def __init__(self, ndof: int, dofs_list: list[np.ndarray]):
         self.ndof = int(ndof)
         self.dofs = [np.asarray(d, dtype=np.int64).reshape(len(d), -1) for d in dofs_list]
         keys = [self._block_keys(d) for d in self.dofs]
+        sizes = [len(k) for k in keys]
         all_keys = np.concatenate(keys) if keys else np.zeros(0, np.int64)
+        del keys
         # unique keys are sorted row-major: exactly the CSR order of the pattern
         uniq, inverse = np.unique(all_keys, return_inverse=True)
-        rows, cols = np.divmod(uniq, self.ndof)
-        self.indices = cols.astype(np.int32 if self.ndof < 2**31 else np.int64)
-        self.indptr = np.zeros(self.ndof + 1, dtype=self.indices.dtype)
-        np.cumsum(np.bincount(rows, minlength=self.ndof), out=self.indptr[1:])
+        del all_keys
         self.nnz = len(uniq)
-        splits = np.cumsum([len(k) for k in keys])[:-1]
-        self.positions = np.split(inverse.ravel(), splits) if keys else []
-        self.rows = rows          # (nnz,) row of each data entry (for reductions and diagnostics)
+        itype = index_dtype(max(self.nnz, self.ndof + 1))
+        rows, cols = np.divmod(uniq, self.ndof)
+        del uniq
+        self.indices = cols.astype(itype)
+        self.indptr = np.zeros(self.ndof + 1, dtype=itype)
+        np.cumsum(np.bincount(rows, minlength=self.ndof), out=self.indptr[1:])
+        del rows, cols
+        inverse = inverse.ravel().astype(itype)
+        splits = np.cumsum(sizes)[:-1]
+        self.positions = np.split(inverse, splits) if sizes else []
+
+    @property
+    def rows(self) -> np.ndarray:
+        """(nnz,) row of each ``data`` entry, from ``indptr`` (not kept: as large as
+        ``indices``, and needed only when the free DOFs are set up)."""
+        return np.repeat(np.arange(self.ndof, dtype=self.indices.dtype), np.diff(self.indptr))
 
     def _block_keys(self, dofs: np.ndarray) -> np.ndarray:
         """Row-major keys ``row*ndof + col`` of every (e, a, b) block entry, flattened."""
@@ -85,3 +102,9 @@ class Pattern:
                           copy=False)
         A.has_sorted_indices = True
         return A
+
+
+def index_dtype(largest: int):
+    """int32 for index arrays whose entries (and lengths) stay below ``largest`` < 2**31,
+    int64 beyond."""
+    return np.int32 if largest < 2**31 - 1 else np.int64
