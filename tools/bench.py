@@ -97,8 +97,11 @@ class _Stop(Exception):
 
 
 def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
-            max_increments: int | None = None, kernel: str = "AUTO") -> dict:
+            max_increments: int | None = None, kernel: str = "AUTO",
+            controls: dict | None = None) -> dict:
     """Run press-then-slide at ``nx`` x ``ny``; return the measurements (a JSON-able dict).
+
+    ``controls``: ``*CONTROLS`` values set in every step (``{"KRYLOV": 0}``, say).
 
     ``max_increments`` stops the run after that many converged increments (status
     ``"truncated"``): the time per iteration is measured, not that the whole run converges."""
@@ -119,6 +122,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     for step in model.steps:
         step.controls["SOLVER"] = solver
         step.controls["KERNEL"] = kernel
+        step.controls.update(controls or {})
     t0 = time.perf_counter()
     problem = problem_mod.build_problem(model)
     t_build = time.perf_counter() - t0
@@ -179,8 +183,11 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     first = writers[0]
     inner_first = first.increment
 
+    factor_marks: list[int] = []       # factorisations (failed attempts' too) up to each increment
+
     def counted(result):
         per_increment.append((result.step, result.iterations, result.cutbacks))
+        factor_marks.append(timers.n["factor"])
         inner_first(result)
     first.increment = counted
     inner_failed = first.failed_attempt
@@ -236,6 +243,8 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         "solver_used": sorted(used), "pardiso_analyses": int(sum(analyses.values())),
         "cutbacks": len(failures), "failed_attempts": failures,
         "solves_per_increment": [n for _, n, _ in per_increment],
+        "factorisations": timers.n["factor"], "back_substitutions": timers.n["solve"],
+        "factorisations_per_increment": np.diff([0] + factor_marks).tolist(),
         "increment_steps": [st for st, _, _ in per_increment],
         "t_deck": t_deck, "t_build": t_build, "t_run": t_run, "times": t,
         "cpu_run": cpu_run, "cpu_times": cpu, "load_average": os.getloadavg(),
@@ -719,6 +728,8 @@ def main(argv=None) -> int:
     p.add_argument("--keep", help="work directory to keep (deck and output)")
     p.add_argument("--max-increments", type=int)
     p.add_argument("--kernel", default="AUTO", choices=("AUTO", "NUMPY", "NUMBA"))
+    p.add_argument("--controls", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="*CONTROLS values for every step (e.g. KRYLOV=0)")
     p = sub.add_parser("assembly")
     p.add_argument("--nx", type=int, default=160)
     p.add_argument("--ny", type=int, default=80)
@@ -745,7 +756,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     if args.cmd == "one":
-        res = run_one(args.nx, args.ny, args.solver, args.keep, args.max_increments, args.kernel)
+        controls = dict(kv.split("=", 1) for kv in args.controls)
+        res = run_one(args.nx, args.ny, args.solver, args.keep, args.max_increments, args.kernel,
+                      controls)
         text = json.dumps(res, indent=1)
         if args.json:
             args.json.write_text(text)

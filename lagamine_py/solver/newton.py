@@ -34,6 +34,7 @@ import numpy as np
 
 from ..core.errors import (ConvergenceFailure, DivergingResidual, IterationLimit,  # noqa: F401
                            NotANumber, SingularMatrixError)
+from .reuse import FactorReuse, forcing
 
 __all__ = ["Settings", "Converged", "IterationObserver", "solve_increment", "FLOOR_FRACTION"]
 
@@ -95,13 +96,16 @@ class Converged:
     history: list[float] = field(default_factory=list)
     f_ext: np.ndarray | None = None  # set by the step controller: loads of the increment
     ctx: Any = None                  # and its StepContext
+    factorisations: int = 0          # of the tangent, over the solves (FactorReuse)
+    back_substitutions: int = 0
 
 
 def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict], ctx,
                     u_c: np.ndarray, f_ext: np.ndarray, settings: Settings,
                     floor: float = 0.0, u_start: np.ndarray | None = None,
                     predicted: np.ndarray | None = None,
-                    observers: tuple[IterationObserver, ...] = ()) -> Converged:
+                    observers: tuple[IterationObserver, ...] = (),
+                    solves: FactorReuse | None = None) -> Converged:
     """Solve one increment.
 
     Parameters
@@ -123,7 +127,21 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     predicted : (ndof,) the predicted part of ``u_start``, whose energy the energy test counts
         (see :func:`_predicted_energy`); None: none.
     observers : :class:`IterationObserver` instances watching this increment.
+    solves : :class:`~lagamine_py.solver.reuse.FactorReuse` around ``solver`` (the factor kept
+        from one solve to the next, GMRES on it); None: ``solver`` factorises every solve.
     """
+    solves = solves if solves is not None else FactorReuse(solver)
+    f0, b0 = solves.counts()
+    conv = _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor,
+                   u_start, predicted, observers)
+    conv.factorisations = solves.factorisations - f0
+    conv.back_substitutions = solves.back_substitutions - b0
+    return conv
+
+
+def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor, u_start,
+            predicted, observers) -> Converged:
+    """The iterations of :func:`solve_increment`."""
     c = free.constrained
     u = np.array(u_old if u_start is None else u_start, float)
     du_imposed = np.zeros_like(u)
@@ -160,7 +178,10 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
             raise NotANumber(f"non-finite tangent stiffness at iteration {k} (a material or "
                              f"penalty value near the float range overflows?)", history)
         rhs = -Rf - (free.kfc_dot(ev.data, du_imposed) if imposing else 0.0)
-        du_f = _linear_solve(solver, free, ev.data, rhs)
+        # a solve on the factor in hand stops at a linear residual that leaves the next
+        # iterate's residual as it would be (forcing) or below a tenth of the tolerance
+        atol = max(forcing(history) * float(np.linalg.norm(rhs)), 0.1 * settings.rtol * scale)
+        du_f = _linear_solve(solves, free, ev.data, rhs, atol)
         energy = abs(float(du_f @ rhs))
         log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
         if not np.all(np.isfinite(du_f)):
@@ -264,14 +285,14 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
 
-def _linear_solve(solver, free, data, rhs):
-    """Solve ``K_ff du_f = rhs``; a singular ``K_ff`` raises SingularMatrixError naming the DOFs
-    (in global numbering) that nothing restrains."""
+def _linear_solve(solves, free, data, rhs, atol=0.0):
+    """Solve ``K_ff du_f = rhs`` (:meth:`FactorReuse.solve`); a singular ``K_ff`` raises
+    SingularMatrixError naming the DOFs (in global numbering) that nothing restrains."""
     A = free.kff(data)
     try:
-        solver.factor(A)
-        return solver.solve(rhs)
+        return solves.solve(free, A, rhs, atol)
     except SingularMatrixError as exc:
+        solves.forget()
         err = SingularMatrixError(free.free[exc.dofs], exc.detail, span=diagonal_span(A))
         err.matrix = data                    # for the rigid-body diagnosis of the controller
         raise err from None
