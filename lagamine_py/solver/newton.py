@@ -10,6 +10,19 @@ Convergence (tolerances from ``*CONTROLS``, defaults in :mod:`lagamine_py.solver
   that produced ``du_f``.  It is an *alternative* test: it lets an increment whose force scale
   degenerates still converge; as ``energy ~ |R|^2`` it is as strict as the force test.
 
+Divergence: a residual above ``DIVERGED_REL``, or one that grew over three iterations and is
+above the first.  With ``*CONTROLS SDI=YES`` (the default) the growth verdict is not given
+while an observer sees its states switching (:meth:`IterationObserver.switching`: contact points
+changing state between the last two iterates), as Abaqus does not count its "severe
+discontinuity iterations": at the onset of sliding tens of points change state at each of the
+first iterations and the residual grows while they find their states (press-then-slide cut
+back its first slide increment at every mesh for it).  MAXIT and the blow-up test still bound
+the increment; an increment with no state change is judged as before, bit for bit.
+
+Linear solves go through :class:`~lagamine_py.solver.reuse.FactorReuse` (``*CONTROLS
+KRYLOV``): GMRES on the factor in hand when it converges within a few steps, a new
+factorisation otherwise.
+
 Each iteration's norms go to the ``lagamine_py.solver`` logger (quadratic convergence shows
 there).  Failures are typed (:class:`IterationLimit`, :class:`DivergingResidual`,
 :class:`NotANumber`, :class:`GroupFailure`, and ``SingularMatrixError`` from
@@ -50,11 +63,14 @@ class Settings:
     etol: float = 1e-14
     maxit: int = 25
     linesearch: bool = False
+    #: severe discontinuity iterations: no growth verdict while observed states switch
+    sdi: bool = True
 
     @classmethod
     def from_controls(cls, controls: dict[str, Any]) -> "Settings":
         return cls(rtol=float(controls["RTOL"]), etol=float(controls["ETOL"]),
-                   maxit=int(controls["MAXIT"]), linesearch=bool(controls["LINESEARCH"]))
+                   maxit=int(controls["MAXIT"]), linesearch=bool(controls["LINESEARCH"]),
+                   sdi=bool(controls["SDI"]))
 
 
 class IterationObserver:
@@ -83,6 +99,12 @@ class IterationObserver:
 
     def settle(self, ctx, states):
         return None
+
+    def switching(self, states) -> bool:
+        """True when ``states`` (the last evaluation's) differ from those :meth:`context` saw
+        last in what the observer watches (contact points changing state): a residual that
+        grows then is the search for the states, not a divergence."""
+        return False
 
 
 @dataclass
@@ -173,7 +195,7 @@ def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, flo
         if k == settings.maxit:
             raise IterationLimit(f"no convergence in {settings.maxit} iterations "
                                  f"(|R|/F = {rel:.3e})", history)
-        _check_divergence(history)
+        _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
         if not np.all(np.isfinite(ev.data)):       # else the solver calls it "singular"
             raise NotANumber(f"non-finite tangent stiffness at iteration {k} (a material or "
                              f"penalty value near the float range overflows?)", history)
@@ -251,6 +273,9 @@ class _Observers:
     def held(self) -> str:
         return " and ".join(o.held for o in self.all if o.active)
 
+    def switching(self, states) -> bool:
+        return any(o.switching(states) for o in self.all)
+
 
 def _predicted_energy(problem, data, d: np.ndarray) -> float:
     """``|d . K d|`` for the predicted part ``d`` of the increment (the first iterate minus the
@@ -306,12 +331,14 @@ def diagonal_span(A) -> tuple[float, float]:
     return (float(d.min()), float(d.max())) if d.size else (0.0, 0.0)
 
 
-def _check_divergence(history: list[float]) -> None:
+def _check_divergence(history: list[float], excused=lambda: False) -> None:
+    """A blow-up, or a residual grown over three iterations unless ``excused()`` (asked only
+    then: the states switching, see SDI), raises."""
     rel = history[-1]
     if rel > DIVERGED_REL:
         raise DivergingResidual(f"residual blew up (|R|/F = {rel:.3e})", history)
     if len(history) >= 5 and all(history[-i] > history[-i - 1] for i in (1, 2, 3)) \
-            and rel > history[0]:
+            and rel > history[0] and not excused():
         raise DivergingResidual(f"residual grew over 3 iterations (|R|/F = {rel:.3e})", history)
 
 
