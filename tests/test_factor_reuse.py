@@ -199,3 +199,17 @@ def test_press_slide_with_the_factor_reused_slides_at_the_closed_form(tmp_path, 
     for P, T in ((P_on, T_on), (P_off, T_off)):
         assert P == pytest.approx(6000.0, rel=1e-3)
         assert abs(T) == pytest.approx(0.2 * P, rel=1e-6)
+
+
+def test_gmres_gives_up_early_when_its_rate_cannot_reach_the_tolerance():
+    """A preconditioner that does nothing on a matrix whose eigenvalues spread over eight
+    decades: the residual falls by a few per cent per step, so GMRES stops at its third step
+    instead of spending the fifty it was allowed (each one a back-substitution)."""
+    A = sp.diags(np.logspace(0.0, 8.0, 400)).tocsr()
+    calls = []
+
+    def M(v):
+        calls.append(1)
+        return v
+    x, k = gmres_right(A, M, np.ones(400), 1e-8, 50)
+    assert x is None and k == 3 and len(calls) == 3

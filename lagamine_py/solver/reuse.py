@@ -114,8 +114,11 @@ def gmres_right(A, M, b: np.ndarray, rtol: float, steps: int, atol: float = 0.0)
     b : (n,) right-hand side.
 
     Returns ``(x, k)``: the solution after ``k`` steps once ``|b - A x| <= max(rtol |b|, atol)``
-    (checked on the true residual), or ``(None, steps)`` when the steps ran out (or the preconditioned
-    operator broke down without reaching it).  Costs ``k + 1`` calls of ``M``."""
+    (checked on the true residual), or ``(None, k)`` when it gives up after ``k`` steps: the
+    steps ran out, the preconditioned operator broke down without reaching it, or from the
+    third step on the mean reduction per step so far, kept up to ``steps``, would end more
+    than ten times above it (a factor that far from the matrix is not worth more steps).
+    Costs ``k + 1`` calls of ``M`` when it succeeds, ``k`` when it gives up."""
     beta = float(np.linalg.norm(b))
     if beta == 0.0:
         return np.zeros_like(b), 0
@@ -147,5 +150,7 @@ def gmres_right(A, M, b: np.ndarray, rtol: float, steps: int, atol: float = 0.0)
             if float(np.linalg.norm(b - A @ x)) <= tol:
                 return x, j + 1
             return None, steps
+        if j >= 2 and beta * (estimate / beta) ** (steps / (j + 1)) > 10.0 * tol:
+            return None, j + 1            # the rate so far would not reach tol in `steps`
         V[j + 1] = w / H[j + 1, j]
     return None, steps
