@@ -130,10 +130,10 @@ class _Free:
 
 
 def test_forcing_term_follows_the_residual_reduction_and_is_clamped():
-    assert forcing([1.0]) == 1e-3
+    assert forcing([1.0]) == 1e-2                             # ETA_FIRST
     assert forcing([1e-2, 1e-3]) == pytest.approx(0.9e-2)
     assert forcing([1e-2, 1e-6]) == 1e-7                      # 0.9e-8 clamped to RTOL
-    assert forcing([1e-2, 1e-1]) == 1e-2                      # residual grew: ETA_MAX
+    assert forcing([1e-2, 1e-1]) == 0.1                       # residual grew: ETA_MAX
 
 
 def test_newton_with_the_factor_reused_reaches_plain_newtons_answer_with_fewer_factors():
