@@ -122,8 +122,10 @@ class _Stop(Exception):
 
 def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
             max_increments: int | None = None, kernel: str = "AUTO",
-            numba_from: int | None = None) -> dict:
+            numba_from: int | None = None, controls: dict | None = None) -> dict:
     """Run press-then-slide at ``nx`` x ``ny``; return the measurements (a JSON-able dict).
+
+    ``controls``: ``*CONTROLS`` values set in every step (``{"KRYLOV": 0}``, say).
 
     ``max_increments`` stops the run after that many converged increments (status
     ``"truncated"``): the time per iteration is measured, not that the whole run converges.
@@ -148,6 +150,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     for step in model.steps:
         step.controls["SOLVER"] = solver
         step.controls["KERNEL"] = kernel
+        step.controls.update(controls or {})
     if numba_from is not None:
         kernels.AUTO_NUMBA_ELEMENTS = numba_from
     t0 = time.perf_counter()
@@ -228,8 +231,11 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     first = writers[0]
     inner_first = first.increment
 
+    factor_marks: list[int] = []       # factorisations (failed attempts' too) up to each increment
+
     def counted(result):
         per_increment.append((result.step, result.iterations, result.cutbacks))
+        factor_marks.append(timers.n["factor"])
         inner_first(result)
     first.increment = counted
     inner_failed = first.failed_attempt
@@ -287,6 +293,8 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         "pardiso_memory_mb": pardiso_memory,
         "cutbacks": len(failures), "failed_attempts": failures,
         "solves_per_increment": [n for _, n, _ in per_increment],
+        "factorisations": timers.n["factor"], "back_substitutions": timers.n["solve"],
+        "factorisations_per_increment": np.diff([0] + factor_marks).tolist(),
         "increment_steps": [st for st, _, _ in per_increment],
         "t_deck": t_deck, "t_build": t_build, "t_run": t_run, "times": t,
         "cpu_run": cpu_run, "cpu_times": cpu, "load_average": os.getloadavg(),
@@ -856,6 +864,8 @@ def main(argv=None) -> int:
     p.add_argument("--kernel", default="AUTO", choices=("AUTO", "NUMPY", "NUMBA"))
     p.add_argument("--numba-from", type=int, help="KERNEL=AUTO's solid-element threshold "
                    "for this run (kernels.AUTO_NUMBA_ELEMENTS)")
+    p.add_argument("--controls", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="*CONTROLS values for every step (e.g. KRYLOV=0)")
     p = sub.add_parser("assembly")
     p.add_argument("--nx", type=int, default=160)
     p.add_argument("--ny", type=int, default=80)
@@ -886,8 +896,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     if args.cmd == "one":
+        controls = dict(kv.split("=", 1) for kv in args.controls)
         res = run_one(args.nx, args.ny, args.solver, args.keep, args.max_increments, args.kernel,
-                      args.numba_from)
+                      args.numba_from, controls)
         text = json.dumps(res, indent=1)
         if args.json:
             args.json.write_text(text)

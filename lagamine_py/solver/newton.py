@@ -10,6 +10,19 @@ Convergence (tolerances from ``*CONTROLS``, defaults in :mod:`lagamine_py.solver
   that produced ``du_f``.  It is an *alternative* test: it lets an increment whose force scale
   degenerates still converge; as ``energy ~ |R|^2`` it is as strict as the force test.
 
+Divergence: a residual above ``DIVERGED_REL``, or one that grew over three iterations and is
+above the first.  With ``*CONTROLS SDI=YES`` (the default) the growth verdict is not given
+while an observer sees its states switching (:meth:`IterationObserver.switching`: contact points
+changing state between the last two iterates), as Abaqus does not count its "severe
+discontinuity iterations": at the onset of sliding tens of points change state at each of the
+first iterations and the residual grows while they find their states (press-then-slide cut
+back its first slide increment at every mesh for it).  MAXIT and the blow-up test still bound
+the increment; an increment with no state change is judged as before, bit for bit.
+
+Linear solves go through :class:`~lagamine_py.solver.reuse.FactorReuse` (``*CONTROLS
+KRYLOV``): GMRES on the factor in hand when it converges within a few steps, a new
+factorisation otherwise.
+
 Each iteration's norms go to the ``lagamine_py.solver`` logger (quadratic convergence shows
 there).  Failures are typed (:class:`IterationLimit`, :class:`DivergingResidual`,
 :class:`NotANumber`, :class:`GroupFailure`, and ``SingularMatrixError`` from
@@ -34,6 +47,7 @@ import numpy as np
 
 from ..core.errors import (ConvergenceFailure, DivergingResidual, IterationLimit,  # noqa: F401
                            NotANumber, SingularMatrixError)
+from .reuse import FactorReuse, forcing
 
 __all__ = ["Settings", "Converged", "IterationObserver", "solve_increment", "FLOOR_FRACTION"]
 
@@ -49,11 +63,14 @@ class Settings:
     etol: float = 1e-14
     maxit: int = 25
     linesearch: bool = False
+    #: severe discontinuity iterations: no growth verdict while observed states switch
+    sdi: bool = True
 
     @classmethod
     def from_controls(cls, controls: dict[str, Any]) -> "Settings":
         return cls(rtol=float(controls["RTOL"]), etol=float(controls["ETOL"]),
-                   maxit=int(controls["MAXIT"]), linesearch=bool(controls["LINESEARCH"]))
+                   maxit=int(controls["MAXIT"]), linesearch=bool(controls["LINESEARCH"]),
+                   sdi=bool(controls["SDI"]))
 
 
 class IterationObserver:
@@ -83,6 +100,12 @@ class IterationObserver:
     def settle(self, ctx, states):
         return None
 
+    def switching(self, states) -> bool:
+        """True when ``states`` (the last evaluation's) differ from those :meth:`context` saw
+        last in what the observer watches (contact points changing state): a residual that
+        grows then is the search for the states, not a divergence."""
+        return False
+
 
 @dataclass
 class Converged:
@@ -95,13 +118,16 @@ class Converged:
     history: list[float] = field(default_factory=list)
     f_ext: np.ndarray | None = None  # set by the step controller: loads of the increment
     ctx: Any = None                  # and its StepContext
+    factorisations: int = 0          # of the tangent, over the solves (FactorReuse)
+    back_substitutions: int = 0
 
 
 def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict], ctx,
                     u_c: np.ndarray, f_ext: np.ndarray, settings: Settings,
                     floor: float = 0.0, u_start: np.ndarray | None = None,
                     predicted: np.ndarray | None = None,
-                    observers: tuple[IterationObserver, ...] = ()) -> Converged:
+                    observers: tuple[IterationObserver, ...] = (),
+                    solves: FactorReuse | None = None) -> Converged:
     """Solve one increment.
 
     Parameters
@@ -123,7 +149,21 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     predicted : (ndof,) the predicted part of ``u_start``, whose energy the energy test counts
         (see :func:`_predicted_energy`); None: none.
     observers : :class:`IterationObserver` instances watching this increment.
+    solves : :class:`~lagamine_py.solver.reuse.FactorReuse` around ``solver`` (the factor kept
+        from one solve to the next, GMRES on it); None: ``solver`` factorises every solve.
     """
+    solves = solves if solves is not None else FactorReuse(solver)
+    f0, b0 = solves.counts()
+    conv = _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor,
+                   u_start, predicted, observers)
+    conv.factorisations = solves.factorisations - f0
+    conv.back_substitutions = solves.back_substitutions - b0
+    return conv
+
+
+def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor, u_start,
+            predicted, observers) -> Converged:
+    """The iterations of :func:`solve_increment`."""
     c = free.constrained
     u = np.array(u_old if u_start is None else u_start, float)
     du_imposed = np.zeros_like(u)
@@ -155,12 +195,15 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
         if k == settings.maxit:
             raise IterationLimit(f"no convergence in {settings.maxit} iterations "
                                  f"(|R|/F = {rel:.3e})", history)
-        _check_divergence(history)
+        _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
         if not np.all(np.isfinite(ev.data)):       # else the solver calls it "singular"
             raise NotANumber(f"non-finite tangent stiffness at iteration {k} (a material or "
                              f"penalty value near the float range overflows?)", history)
         rhs = -Rf - (free.kfc_dot(ev.data, du_imposed) if imposing else 0.0)
-        du_f = _linear_solve(solver, free, ev.data, rhs)
+        # a solve on the factor in hand stops at a linear residual that leaves the next
+        # iterate's residual as it would be (forcing) or below a tenth of the tolerance
+        atol = max(forcing(history) * float(np.linalg.norm(rhs)), 0.1 * settings.rtol * scale)
+        du_f = _linear_solve(solves, free, ev.data, rhs, atol)
         energy = abs(float(du_f @ rhs))
         log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
         if not np.all(np.isfinite(du_f)):
@@ -230,6 +273,9 @@ class _Observers:
     def held(self) -> str:
         return " and ".join(o.held for o in self.all if o.active)
 
+    def switching(self, states) -> bool:
+        return any(o.switching(states) for o in self.all)
+
 
 def _predicted_energy(problem, data, d: np.ndarray) -> float:
     """``|d . K d|`` for the predicted part ``d`` of the increment (the first iterate minus the
@@ -264,14 +310,14 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
 
-def _linear_solve(solver, free, data, rhs):
-    """Solve ``K_ff du_f = rhs``; a singular ``K_ff`` raises SingularMatrixError naming the DOFs
-    (in global numbering) that nothing restrains."""
+def _linear_solve(solves, free, data, rhs, atol=0.0):
+    """Solve ``K_ff du_f = rhs`` (:meth:`FactorReuse.solve`); a singular ``K_ff`` raises
+    SingularMatrixError naming the DOFs (in global numbering) that nothing restrains."""
     A = free.kff(data)
     try:
-        solver.factor(A)
-        return solver.solve(rhs)
+        return solves.solve(free, A, rhs, atol)
     except SingularMatrixError as exc:
+        solves.forget()
         err = SingularMatrixError(free.free[exc.dofs], exc.detail, span=diagonal_span(A))
         err.matrix = data                    # for the rigid-body diagnosis of the controller
         raise err from None
@@ -285,12 +331,14 @@ def diagonal_span(A) -> tuple[float, float]:
     return (float(d.min()), float(d.max())) if d.size else (0.0, 0.0)
 
 
-def _check_divergence(history: list[float]) -> None:
+def _check_divergence(history: list[float], excused=lambda: False) -> None:
+    """A blow-up, or a residual grown over three iterations unless ``excused()`` (asked only
+    then: the states switching, see SDI), raises."""
     rel = history[-1]
     if rel > DIVERGED_REL:
         raise DivergingResidual(f"residual blew up (|R|/F = {rel:.3e})", history)
     if len(history) >= 5 and all(history[-i] > history[-i - 1] for i in (1, 2, 3)) \
-            and rel > history[0]:
+            and rel > history[0] and not excused():
         raise DivergingResidual(f"residual grew over 3 iterations (|R|/F = {rel:.3e})", history)
 
 

@@ -90,6 +90,11 @@ class FlipFlop(IterationObserver):
             self.last[k] = code.copy()
         return self._with_frozen(ctx)
 
+    def switching(self, states) -> bool:
+        """Some watched point's state differs from the last evaluation's."""
+        return any(k in self.last and self.last[k].shape == code.shape
+                   and bool(np.any(code != self.last[k])) for k, _, code in self._states(states))
+
     def _with_frozen(self, ctx):
         if not self.frozen:
             return ctx

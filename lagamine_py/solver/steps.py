@@ -52,6 +52,7 @@ from .energy import EnergyAccount
 from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, driving_loads, step_loads
 from .newton import FLOOR_FRACTION, Settings, solve_increment
+from .reuse import FactorReuse
 from .predictor import first_iterate
 from .problem import (CONTACT, SOLID, Problem, alternation_advice, build_problem,
                       dload_surfaces, faces_in_contact, penalty_advice)
@@ -206,6 +207,7 @@ class Controller:
         self.energy = EnergyAccount(n) if tracks_energy(model) else None
         self._previous = None             # (u, states) before the last commit (energy)
         self._solvers: dict = {}          # the linear solver of the last step, by name
+        self._solves: FactorReuse | None = None   # and its factor, kept between solves
         self._last_energy: dict = {}      # the energy terms of the last hand-out
         self._advised: set[str] = set()   # the contact advice given (once per pair and what)
 
@@ -391,7 +393,11 @@ class Controller:
             # the step before keeps PARDISO's analysis (the structure is compared by value)
             name = str(controls["SOLVER"]).upper()
             solver = self._solvers.get(name) or make_solver(controls["SOLVER"])
+            if self._solvers.get(name) is not solver:
+                self._solves = FactorReuse(solver)
             self._solvers = {name: solver}      # only one alive: its factor is the run's
+            self._solves.krylov = int(controls["KRYLOV"])
+            self._solves.min_dofs = int(controls["KRYLOVDOFS"])
             self.problem.set_kernel(controls["KERNEL"])
         except KeyError as exc:
             raise SetupError(f"step {si + 1} ({step.name}): {exc.args[0]}") from None
@@ -468,13 +474,15 @@ class Controller:
         # the increment is cut back), not a warning on the terminal
         contact = problem.indices(CONTACT)
         states, solves, iterations, ratio = self.states, 0, 0, 0.0
+        factorisations = back_substitutions = 0
         while True:
             try:
                 with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                     trial = solve_increment(
                         problem, solver, free, self.u, states, ctx, u_c, f_ext, settings,
                         floor=FLOOR_FRACTION * self.force_ref, u_start=start, predicted=predicted,
-                        observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),))
+                        observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),),
+                        solves=self._solves)
             except ConvergenceFailure as exc:
                 if solves == 0:
                     raise
@@ -486,6 +494,8 @@ class Controller:
                 break
             conv = trial
             solves, iterations = solves + 1, iterations + conv.iterations
+            factorisations += conv.factorisations
+            back_substitutions += conv.back_substitutions
             # METHOD=AUGMENTED: solve again with the multipliers of this solve (augmented.py)
             again, ratio = augmented_start(problem, contact, states, conv.states)
             if again is None:
@@ -500,6 +510,7 @@ class Controller:
             log.info("  augmentation %d: the constraints %.3g times PTOL away", solves, ratio)
             states, start, predicted = again, conv.u, None
         conv.iterations = iterations           # the cost of the increment: every solve's
+        conv.factorisations, conv.back_substitutions = factorisations, back_substitutions
         conv.f_ext, conv.ctx = f_ext, ctx
         return conv
 
