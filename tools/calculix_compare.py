@@ -471,15 +471,17 @@ def reference(kind: str, a: dict) -> str:
 
 
 def table(rows: list[dict]) -> str:
+    """The markdown table of ``rows`` (load: the 1-minute load average after the scene)."""
     head = ("| scene | DOFs | wall ours (s) | wall CalculiX (s) | wall ours / CalculiX | "
-            "CPU ours / CalculiX | peak MB ours | peak MB CalculiX | answer ours | "
-            "answer CalculiX | closed form (our P) |\n"
-            "|---|---|---|---|---|---|---|---|---|---|---|\n")
+            "CPU ours (s) | CPU CalculiX (s) | CPU ours / CalculiX | peak MB ours | "
+            "peak MB CalculiX | answer ours | answer CalculiX | closed form (our P) | load |\n"
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
     return head + "".join(
         f"| {r['scene']} | {r['dofs']} | {r['ours_s']:.2f} | {r['ccx_s']:.2f} | "
-        f"**{r['ratio']:.3f}** | {r['cpu_ratio']:.3f} | {r['ours_MB']:.0f} | {r['ccx_MB']:.0f} | "
+        f"**{r['ratio']:.3f}** | {r['ours_cpu']:.2f} | {r['ccx_cpu']:.2f} | "
+        f"**{r['cpu_ratio']:.3f}** | {r['ours_MB']:.0f} | {r['ccx_MB']:.0f} | "
         f"{describe(r['answer'], r['ours'])} | {describe(r['answer'], r['ccx'])} | "
-        f"{reference(r['answer'], r['ours'])} |\n" for r in rows)
+        f"{reference(r['answer'], r['ours'])} | {r['load_average'][0]:.1f} |\n" for r in rows)
 
 
 def main(argv=None) -> int:
@@ -498,7 +500,12 @@ def main(argv=None) -> int:
                          "in a small-strain step gives the Hertz cylinder a stiffer response)")
     ap.add_argument("--decks-only", action="store_true", help="write the decks, run nothing")
     ap.add_argument("--json", type=Path, help="write the rows to this file")
+    ap.add_argument("--table", nargs="*", type=Path, default=[],
+                    help="print the table of the rows of these --json files, run nothing")
     args = ap.parse_args(argv)
+    if args.table:
+        print(table([r for f in args.table for r in json.loads(f.read_text())]))
+        return 0
     groups = scenes(args.sizes)
     chosen = [s for g in args.scenes for s in groups[g]]
     if args.write_decks or args.decks_only:
