@@ -519,17 +519,25 @@ def main(argv=None) -> int:
         raise SystemExit("ccx not found: sudo apt-get install -y calculix-ccx")
     if args.keep:
         args.keep.mkdir(parents=True, exist_ok=True)
-    rows = []
+    rows, failed = [], []
     for s in chosen:
         work = Path(tempfile.mkdtemp(prefix=f"ccx_{s.name}_", dir=args.keep))
-        rows.append(run_scene(s, args.repeat, work, ccx, args.ccx_nlgeom))
+        try:
+            rows.append(run_scene(s, args.repeat, work, ccx, args.ccx_nlgeom))
+        except RuntimeError as err:      # one code failed the scene: say so, go on
+            print(f"{s.name}: {str(err)[-600:]}", file=sys.stderr, flush=True)
+            failed.append(s.name)
+            continue
+        finally:
+            if args.keep is None:
+                shutil.rmtree(work, ignore_errors=True)
         print(json.dumps(rows[-1]), flush=True)
-        if args.keep is None:
-            shutil.rmtree(work, ignore_errors=True)
         if args.json:
             args.json.write_text(json.dumps(rows, indent=1))
     print("\n" + table(rows))
-    return 0
+    if failed:
+        print(f"failed: {' '.join(failed)}", file=sys.stderr)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
