@@ -90,6 +90,7 @@ class Scene:
     params: dict = field(default_factory=dict)
     text: str = ""
     radius: float = 10.0      # the cylinder's (hertz, cattaneo)
+    symmetry: float = 1.0     # 2: the model is half the scene (forces doubled)
 
     def ours(self, dest: Path) -> str:
         """Our deck's text, its ``*INCLUDE`` paths relative to the directory ``dest``."""
@@ -119,8 +120,10 @@ def scenes(sizes=("16x8", "40x20", "80x40")) -> dict[str, list[Scene]]:
         slides.append(Scene(f"press-slide-{nx}x{ny}", "T/P", text=press_slide_deck(nx, ny)))
     return {
         "press-slide": slides,
-        "hertz-fine": [Scene("hertz-fine", "hertz", "hertz.dat", {"MESH": "fine", "KP": "6e7"})],
-        "hertz-medium": [Scene("hertz-medium", "hertz", "hertz.dat", {"MESH": "medium"})],
+        "hertz-fine": [Scene("hertz-fine", "hertz", "hertz.dat", {"MESH": "fine", "KP": "6e7"},
+                              symmetry=2.0)],
+        "hertz-medium": [Scene("hertz-medium", "hertz", "hertz.dat", {"MESH": "medium"},
+                                symmetry=2.0)],
         "cattaneo-medium": [Scene("cattaneo-medium", "cattaneo", "cattaneo_mindlin.dat",
                                   {"MESH": "medium", "KP": "3e7"})],
         "cattaneo-fine": [Scene("cattaneo-fine", "cattaneo", "cattaneo_mindlin.dat",
@@ -135,13 +138,6 @@ DEFAULT_SCENES = ("press-slide", "hertz-fine", "cattaneo-medium", "block-20x10")
 
 
 # ------------------------------------------------------------------ the CalculiX deck
-
-
-def ccx_deck(path: Path) -> str:
-    """The CalculiX input of our deck at ``path`` (see :func:`ccx_from_model`)."""
-    from lagamine_py.deck import load_deck
-
-    return ccx_from_model(load_deck(path))
 
 
 def ccx_from_model(model, nlgeom: bool | None = None) -> str:
@@ -436,12 +432,11 @@ def run_scene(scene: Scene, repeat: int, work: Path, ccx: str, ccx_nlgeom: bool 
                 best[name] = (*best[name][:2], min(cpu, best[name][2]))
     contact = model.contacts[0]
     phi = float(model.contact_laws[contact.law].params["PHI"])
-    symmetry = 2.0 if "AXIS" in model.nsets else 1.0       # the quarter cylinder: x = 0 held
     nodes = surface_nodes(model, contact.surface)
-    answers = {"ours": answer(scene.answer, ours_increments(work / "out"), phi, symmetry, model,
-                              scene.radius),
-               "ccx": answer(scene.answer, ccx_increments(work, model, nodes), phi, symmetry,
-                             model, scene.radius)}
+    answers = {"ours": answer(scene.answer, ours_increments(work / "out"), phi, scene.symmetry,
+                              model, scene.radius),
+               "ccx": answer(scene.answer, ccx_increments(work, model, nodes), phi,
+                             scene.symmetry, model, scene.radius)}
     return {"scene": scene.name + (" (ccx NLGEOM)" if ccx_nlgeom else ""), "dofs": 2 * len(model.node_ids),
             "ours_s": best["ours"][0], "ccx_s": best["ccx"][0],
             "ratio": best["ours"][0] / best["ccx"][0],
