@@ -22,8 +22,8 @@ Scenes (``--scenes``; default all but ``block-8x4``):
                   pressed, then the flat moved sideways; answer the stick half-width c at
                   Q = phi P / 2 (interpolated between the shear increments, as the deck's check)
                   against a sqrt(1 - 1/2).
-``cattaneo-fine`` the same with MESH=fine (KP=6e7, 15 114 DOFs); ``cattaneo-coarse`` with the
-                  deck's coarse mesh.
+``cattaneo-fine`` the same with MESH=fine (KP=6e7, 15 114 DOFs: CalculiX 2.20 fails its shear
+                  step, "too many cutbacks"); ``cattaneo-coarse`` with the deck's coarse mesh.
 ``block-20x10``   ``decks/coulomb_block_noadh.dat`` at 20x10 Q8 (1 322 DOFs; the adhesion of
                   ``coulomb_block.dat`` has no CalculiX counterpart); answer T/P.
 ``block-8x4``     the deck as it is (242 DOFs): the smallest scene, the one the test runs.
