@@ -415,19 +415,19 @@ class SolidElement(Element):
             return GroupResult(f, None, new_state)
 
         # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du, i.e.
-        # dE_ij / du_bk = 2 sum_n C_ijkn h_bn (C symmetric in kn).  One (b, n) @ (n, k)
-        # product per (e, q, ij) gives the rows ij = 11, 12, 21, 22 in the element's DOF
-        # order; D's columns are permuted to match (eps11 <- 11, g12 <- 2 x 12, eps22 <- 22;
-        # row 21 equals row 12 and is replaced by d eps33 = du_r / r in axisymmetry), rather
-        # than assembling the strain rows into a fresh (e, q, 4, b, k) array.
+        # dE_ij / du_bk = 2 sum_n C_ijkn h_bn (C symmetric in kn): one (b, n) @ (n, k) product
+        # per (e, q, ij), with C's rows taken in the strain 4-vector's order (11, 22, 21, 12),
+        # rather than assembling the rows into a fresh (e, q, 4, b, k) array.  Row 21 (a copy
+        # of 12) is dropped by a zero factor on D's column 33 in plane strain, and holds
+        # d eps33 = du_r / r in axisymmetry; the factors 2 (and 4 for the engineering shear)
+        # are applied to D's columns (powers of two: exact, the same sums as before).
         h = dNdx @ b2                                                     # (e, q, b, n)
-        M = h[:, :, None] @ C.reshape(ne, nq, 4, 2, 2)                    # (e, q, ij, b, k)
+        M = h[:, :, None] @ C.reshape(ne, nq, 4, 2, 2)[:, :, _IJ_OF_ROW]  # (e, q, s, b, k)
         if self.axisymmetric:
             M[:, :, 2] = 0.0
             M[:, :, 2, :, 0] = self.N / r[..., None]
         scale = _ROW_SCALE_AXI if self.axisymmetric else _ROW_SCALE
-        K = _weighted_product(G, D[..., _ROW_OF_IJ] * scale, M.reshape(ne, nq, 4, 2 * na),
-                              self.w0)
+        K = _weighted_product(G, D * scale, M.reshape(ne, nq, 4, 2 * na), self.w0)
 
         # geometric part: d(dN_a/dx_j) = -dN_a/dx_k l_kj, d(N_a / r) = -N_a du_r / r^2
         tau2 = _vec_to_stress2(tau)
@@ -516,13 +516,12 @@ class SolidElement(Element):
         return old, bad_old
 
 
-#: the strain 4-vector component [11, 22, 33, 12] fed by the rows ij = 11, 12, 21, 22 of the
-#: NLGEOM material tangent, and its factor: 2 (from l b + b l^T), 4 for the engineering shear;
-#: row 21 (a copy of 12) is dropped in plane strain, holds d eps33 = N / r in axisymmetry
-#: (factors powers of two: exact in floating point)
-_ROW_OF_IJ = np.array([0, 3, 2, 1])
-_ROW_SCALE = np.array([2.0, 4.0, 0.0, 2.0])
-_ROW_SCALE_AXI = np.array([2.0, 4.0, 1.0, 2.0])
+#: rows ij (11, 12, 21, 22 flattened) of the NLGEOM material tangent feeding the strain
+#: 4-vector components [11, 22, 33, 12], and the factors of D's columns: 2 (from l b + b l^T),
+#: 4 for the engineering shear, 0 (plane strain) or 1 (axisymmetry: the hoop row) for 33
+_IJ_OF_ROW = np.array([0, 3, 2, 1])
+_ROW_SCALE = np.array([2.0, 2.0, 0.0, 4.0])
+_ROW_SCALE_AXI = np.array([2.0, 2.0, 1.0, 4.0])
 
 #: placeholders of the NLGEOM start arrays in small strain (one compiled signature for both)
 _NO_START = (np.empty((0, 0, 9)), np.empty(0, np.int8))
