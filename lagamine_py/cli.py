@@ -275,7 +275,9 @@ class _AdviceFormatter:
 
 def _cmd_run(args) -> int:
     from .core.threads import pin_openblas_at_load
+    from .core.lazy_modules import defer_numpy_submodules
     pin_openblas_at_load()                  # before numpy loads: no threadpoolctl needed
+    defer_numpy_submodules()                # before scipy.sparse clones numpy's namespace
     from .solver import run
     from .solver.restart import RestartError, deck_of, load
 

@@ -179,3 +179,22 @@ def test_sigterm_stops_a_run_as_ctrl_c_does(tmp_path, monkeypatch, capsys):
     assert "exit status 130" in (out / "coulomb_block.log").read_text().splitlines()[-1]
     monkeypatch.setattr(steps.Controller, "_save_restart", real)
     assert main(["run", "--restart", str(out), "-q"]) == 0
+
+
+@pytest.mark.parametrize("in_memory_bytes", [0, 2**40])
+def test_save_on_file_and_in_memory_load_the_same(tmp_path, monkeypatch, in_memory_bytes):
+    """Small restart data is assembled in memory and written at once, large data streamed
+    to the file: the same .npz either way (every array, dtype and shape back), and the
+    previous file replaced."""
+    from lagamine_py.solver import restart
+    monkeypatch.setattr(restart, "IN_MEMORY_BYTES", in_memory_bytes)
+    rng = np.random.default_rng(1)
+    data = {"deck": np.array("/x/deck.dat"), "step": np.int64(3), "u": rng.standard_normal(7),
+            "state0:stress": rng.standard_normal((2, 9, 4)), "flags": np.array([1, 0], np.int8)}
+    (tmp_path / FILE).write_bytes(b"an older file")
+    restart.save(tmp_path, data)
+    back = restart.load(tmp_path)
+    assert sorted(back) == sorted(data) and not (tmp_path / "restart.tmp.npz").exists()
+    for k, v in data.items():
+        v = np.asarray(v)
+        assert back[k].dtype == v.dtype and back[k].shape == v.shape and np.array_equal(back[k], v)

@@ -22,6 +22,8 @@ NOT_LOADED = (
     "scipy.sparse.linalg", "scipy.linalg",  # SuperLU loaded by file (solver.superlu)
     "threadpoolctl",                        # OPENBLAS_NUM_THREADS set before numpy loads
     "xml.sax", "urllib.request",            # the VTU attribute quoting is ours
+    # numpy's f2py and testing stay lazy modules (core.lazy_modules): never executed
+    "numpy.f2py.crackfortran", "numpy.testing._private.utils",
 )
 
 _SCRIPT = """
@@ -59,3 +61,29 @@ def test_the_main_job_does_not_import(main_job, name):
 def test_openblas_has_one_thread_without_threadpoolctl(main_job):
     """The environment variable set before numpy loads did what pin_threads did."""
     assert main_job["openblas_threads"] and set(main_job["openblas_threads"]) == {1}
+
+
+_LAZY_SCRIPT = """
+import sys
+from lagamine_py.core.lazy_modules import defer_numpy_submodules
+deferred = defer_numpy_submodules()
+import scipy.sparse                     # clones numpy's namespace, f2py and testing included
+assert deferred == ["f2py", "testing"], deferred
+assert "numpy.f2py.crackfortran" not in sys.modules and "unittest" not in sys.modules
+import numpy as np
+from numpy.testing import assert_allclose           # the first use runs the real module
+assert_allclose(np.ones(2), [1.0, 1.0])
+assert np.testing.assert_allclose is assert_allclose and "unittest" in sys.modules
+import numpy.f2py
+assert np.f2py is sys.modules["numpy.f2py"] and callable(numpy.f2py.get_include)
+assert scipy.sparse.csr_matrix(np.eye(2)).nnz == 2
+assert defer_numpy_submodules() == []   # already there: left alone
+print("ok")
+"""
+
+
+def test_deferred_numpy_submodules_load_at_first_use():
+    """The lazy modules cost nothing until used, and then are the real ones (fresh interpreter:
+    this one has numpy.testing loaded)."""
+    res = subprocess.run([sys.executable, "-c", _LAZY_SCRIPT], capture_output=True, text=True)
+    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr

@@ -414,15 +414,20 @@ class SolidElement(Element):
         if not tangent:
             return GroupResult(f, None, new_state)
 
-        # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du
+        # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du, i.e.
+        # dE_ij / du_bk = 2 sum_n C_ijkn h_bn (C symmetric in kn): one (b, n) @ (n, k) product
+        # per (e, q, ij), with C's rows taken in the strain 4-vector's order (11, 22, 21, 12),
+        # rather than assembling the rows into a fresh (e, q, 4, b, k) array.  Row 21 (a copy
+        # of 12) is dropped by a zero factor on D's column 33 in plane strain, and holds
+        # d eps33 = du_r / r in axisymmetry; the factors 2 (and 4 for the engineering shear)
+        # are applied to D's columns (powers of two: exact, the same sums as before).
         h = dNdx @ b2                                                     # (e, q, b, n)
-        dE = 2.0 * (C.reshape(ne, nq, 8, 2) @ np.swapaxes(h, -1, -2))   # (e, q, ijk, b)
-        dE = np.swapaxes(dE.reshape(ne, nq, 2, 2, 2, na), -1, -2)        # (e, q, i, j, b, k)
-        M = np.zeros((ne, nq, 4, na, 2))
-        M[:, :, 0], M[:, :, 1], M[:, :, 3] = dE[:, :, 0, 0], dE[:, :, 1, 1], 2 * dE[:, :, 0, 1]
+        M = h[:, :, None] @ C.reshape(ne, nq, 4, 2, 2)[:, :, _IJ_OF_ROW]  # (e, q, s, b, k)
         if self.axisymmetric:
-            M[:, :, 2, :, 0] = self.N / r[..., None]                  # d eps33 = du_r / r
-        K = _weighted_product(G, D, M.reshape(ne, nq, 4, 2 * na), self.w0)
+            M[:, :, 2] = 0.0
+            M[:, :, 2, :, 0] = self.N / r[..., None]
+        scale = _ROW_SCALE_AXI if self.axisymmetric else _ROW_SCALE
+        K = _weighted_product(G, D * scale, M.reshape(ne, nq, 4, 2 * na), self.w0)
 
         # geometric part: d(dN_a/dx_j) = -dN_a/dx_k l_kj, d(N_a / r) = -N_a du_r / r^2
         tau2 = _vec_to_stress2(tau)
@@ -510,6 +515,13 @@ class SolidElement(Element):
         self._cache["kernel_old"] = (old, bad_old)
         return old, bad_old
 
+
+#: rows ij (11, 12, 21, 22 flattened) of the NLGEOM material tangent feeding the strain
+#: 4-vector components [11, 22, 33, 12], and the factors of D's columns: 2 (from l b + b l^T),
+#: 4 for the engineering shear, 0 (plane strain) or 1 (axisymmetry: the hoop row) for 33
+_IJ_OF_ROW = np.array([0, 3, 2, 1])
+_ROW_SCALE = np.array([2.0, 2.0, 0.0, 4.0])
+_ROW_SCALE_AXI = np.array([2.0, 2.0, 1.0, 4.0])
 
 #: placeholders of the NLGEOM start arrays in small strain (one compiled signature for both)
 _NO_START = (np.empty((0, 0, 9)), np.empty(0, np.int8))

@@ -66,13 +66,14 @@ from .base import CellBlock, IncrementResult, Writer
 from .recovery import RecoveryPlan, nodal_values
 
 
-_ATTR_ESCAPES = {"&": "&amp;", "<": "&lt;", ">": "&gt;", "\n": "&#10;", "\r": "&#13;", "\t": "&#9;"}
+_ATTR_ESCAPES = str.maketrans({"&": "&amp;", "<": "&lt;", ">": "&gt;", "\n": "&#10;", "\r": "&#13;",
+                                "\t": "&#9;"})
 
 
 def quoteattr(value: str) -> str:
     """``value`` as a quoted XML attribute value, exactly as ``xml.sax.saxutils.quoteattr``
     writes it (whose import pulls in urllib, http and ssl: 0.02 s of a short run)."""
-    value = "".join(_ATTR_ESCAPES.get(c, c) for c in value)
+    value = value.translate(_ATTR_ESCAPES)       # one C pass (the .pvd rewrites every name)
     if '"' not in value:
         return f'"{value}"'
     if "'" not in value:
