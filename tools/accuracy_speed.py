@@ -312,15 +312,21 @@ def classic_points() -> list[dict[str, str]]:
     return unique(pts)
 
 
+def sweep_scene(scene: str, deck: Path, pts: list[dict], work: Path, jobs: int, error,
+                names: list[str], base: dict[str, str]) -> list[dict]:
+    """Run ``deck`` at every point of ``pts`` (in ``work/scene``), each converged row updated
+    with ``error(row)`` (a dict with 'error'; NaN for a failed run), and write the scene."""
+    print(f"{scene}: {len(pts)} runs")
+    rows = run_points(deck, pts, work / scene, jobs)
+    for r in rows:
+        r.update(error(r) if r["status"] == 0 else {"error": math.nan})
+    return write_scene(scene, rows, names, base)
+
+
 def scene_hertz_classic(work: Path, jobs: int) -> list[dict]:
     classic_meshes()
-    pts = classic_points()
-    print(f"hertz_classic: {len(pts)} runs")
-    rows = run_points(STUDY / "hertz_classic.dat", pts, work / "hertz_classic", jobs)
-    for r in rows:
-        r.update(classic_error(r) if r["status"] == 0 else {"error": math.nan})
-    names = ["MESH", "GAUSS", "KP", "LAW", "PTOL", "DT"]
-    return write_scene("hertz_classic", rows, names, CLASSIC_BASE)
+    return sweep_scene("hertz_classic", STUDY / "hertz_classic.dat", classic_points(), work, jobs,
+                       classic_error, ["MESH", "GAUSS", "KP", "LAW", "PTOL", "DT"], CLASSIC_BASE)
 
 
 # ------------------------------------------------------------------ partial slip at nu = 0.3
@@ -386,13 +392,10 @@ def partial_points() -> list[dict[str, str]]:
 
 def scene_partial_slip(work: Path, jobs: int) -> list[dict]:
     classic_meshes(full=True)
-    pts = partial_points()
-    print(f"partial_slip: {len(pts)} runs")
-    rows = run_points(STUDY / "partial_slip_study.dat", pts, work / "partial_slip", jobs)
-    for r in rows:
-        r.update(partial_error(r) if r["status"] == 0 else {"error": math.nan})
-    names = ["MESH", "GAUSS", "KP", "PRESS", "LAW", "PTOL", "DT", "TRAVEL"]
-    return write_scene("partial_slip", rows, names, PARTIAL_BASE)
+    return sweep_scene("partial_slip", STUDY / "partial_slip_study.dat", partial_points(), work,
+                       jobs, partial_error,
+                       ["MESH", "GAUSS", "KP", "PRESS", "LAW", "PTOL", "DT", "TRAVEL"],
+                       PARTIAL_BASE)
 
 
 # ------------------------------------------------------------------ the tube deck's pressure
@@ -602,13 +605,9 @@ def stored_rows(scene: str) -> list[dict]:
 # ------------------------------------------------------------------ main
 def scene_hertz(work: Path, jobs: int) -> list[dict]:
     hertz_meshes()
-    pts = hertz_points()
-    print(f"hertz: {len(pts)} runs")
-    rows = run_points(STUDY / "hertz_study.dat", pts, work / "hertz", jobs)
-    for r in rows:
-        r.update(hertz_error(r) if r["status"] == 0 else {"error": math.nan})
-    names = ["MESH", "ELEM", "ETYPE", "GAUSS", "KP", "DT", "NLGEOM", "DEPTH"]
-    return write_scene("hertz", rows, names, HERTZ_BASE)
+    return sweep_scene("hertz", STUDY / "hertz_study.dat", hertz_points(), work, jobs,
+                       hertz_error, ["MESH", "ELEM", "ETYPE", "GAUSS", "KP", "DT", "NLGEOM", "DEPTH"],
+                       HERTZ_BASE)
 
 
 def scene_press_slide(work: Path, jobs: int) -> list[dict]:
@@ -646,12 +645,9 @@ def cm_points() -> list[dict[str, str]]:
 def scene_cattaneo(work: Path, jobs: int) -> list[dict]:
     """decks/cattaneo_mindlin.dat as it is (its *CHECK CATTANEO error: stick half-width c
     against a sqrt(1 - Q/(phi P)) at Q = phi P / 2, relative to a)."""
-    pts = cm_points()
-    print(f"cattaneo: {len(pts)} runs")
-    rows = run_points(ROOT / "decks" / "cattaneo_mindlin.dat", pts, work / "cattaneo", jobs)
-    for r in rows:
-        r["error"] = float(r.get("STICK_error", math.nan)) if r["status"] == 0 else math.nan
-    return write_scene("cattaneo", rows, ["MESH", "ETYPE", "KP", "DT"], CM_BASE)
+    return sweep_scene("cattaneo", ROOT / "decks" / "cattaneo_mindlin.dat", cm_points(), work, jobs,
+                       lambda r: {"error": float(r.get("STICK_error", math.nan))},
+                       ["MESH", "ETYPE", "KP", "DT"], CM_BASE)
 
 
 # ------------------------------------------------------------------ fretting (two bodies)
@@ -687,12 +683,8 @@ def fretting_error(row: dict) -> dict:
 
 def scene_fretting(work: Path, jobs: int) -> list[dict]:
     """decks/fretting.dat as it is, swept over MESH (KP = KT = 20 E*/h), DT and KP."""
-    pts = fretting_points()
-    print(f"fretting: {len(pts)} runs")
-    rows = run_points(ROOT / "decks" / "fretting.dat", pts, work / "fretting", jobs)
-    for r in rows:
-        r.update(fretting_error(r) if r["status"] == 0 else {"error": math.nan})
-    return write_scene("fretting", rows, ["MESH", "KP", "DT"], FRET_BASE)
+    return sweep_scene("fretting", ROOT / "decks" / "fretting.dat", fretting_points(), work, jobs,
+                       fretting_error, ["MESH", "KP", "DT"], FRET_BASE)
 
 
 SCENES = {"hertz_classic": scene_hertz_classic, "partial_slip": scene_partial_slip,
