@@ -775,12 +775,7 @@ class ContactGroup(Group):
             st, D, P, t, extra = self._integrate(u_new, u_old, state, ctx, tangent, stab is not None)
         xn = self._face_x(u_new)
         jac = _norm(t)
-        p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
-        if stab is not None:
-            p, tau = self._stabilise(stab, st, extra, D, tangent)
-        else:
-            st["ps"], st["ts"] = np.zeros(self.ng), np.zeros(self.ng)
-        st = self._increment_totals(st, state, P, t, geo, extra[0], extra[1], extra[3], xn)
+        st, p, tau = self._end_stresses(stab, st, state, extra, D, tangent, P, t, geo, xn)
         pts = self                                 # the points the forces are integrated on
         if self._lift is not None:                 # GAUSS=LINEAR: at the force points
             pts = self._force
@@ -791,13 +786,7 @@ class ContactGroup(Group):
         wt, Dwt = self._weights(P, geo, None if pts is self else pts)
         f = Ng_all[:, :, None] * vec[:, None, :] * wt[:, None, None]            # (g, a, i)
         f = f.reshape(self.nf, nq, self.nd).sum(axis=1)
-        failure = None
-        if (jac <= self._jac_tol).any():
-            failure = f"contact {self.name}: degenerate face (zero Jacobian)"
-        elif not (np.isfinite(f).all() and np.isfinite(p).all() and np.isfinite(tau).all()):
-            failure = f"contact {self.name}: non-finite contact stresses"
-        else:
-            failure = self._inadmissible(st, ctx)
+        failure = self._failure((jac <= self._jac_tol).any(), self._nonfinite(f, p, tau), st, ctx)
         if self.nt:
             f = np.concatenate([f, self._tool_force(vec * wt[:, None], P, ctx, nq)], axis=1)
         K = None
@@ -904,14 +893,34 @@ class ContactGroup(Group):
         st = self._increment_totals(st, state, *self._axes_t(xn, geo), geo, d_start, d_end, dv)
         if snap:
             raise ReturnMappingError(self.law.failure_message)
-        failure = None
-        if degenerate:
-            failure = f"contact {self.name}: degenerate face (zero Jacobian)"
-        elif nonfinite:
-            failure = f"contact {self.name}: non-finite contact stresses"
-        elif outside.any():
-            failure = self._inadmissible(st, ctx, outside)
+        failure = self._failure(degenerate, nonfinite, st, ctx, outside)
         return GroupResult(f=f, K=K, state=st, failure=failure)
+
+    def _end_stresses(self, stab, st, state, extra, D, tangent, P, t, geo, x=None):
+        """``(st, p, tau)`` at the end of the increment: the law's stresses, plus the viscous
+        ones of ``*CONTACT STABILIZATION`` when ``stab`` (zero otherwise), with the group's own
+        totals (:meth:`_increment_totals`; ``extra`` as :meth:`_integrate` returns it)."""
+        p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
+        if stab is not None:
+            p, tau = self._stabilise(stab, st, extra, D, tangent)
+        else:
+            st["ps"], st["ts"] = np.zeros(self.ng), np.zeros(self.ng)
+        st = self._increment_totals(st, state, P, t, geo, extra[0], extra[1], extra[3], x)
+        return st, p, tau
+
+    @staticmethod
+    def _nonfinite(*arrays) -> bool:
+        """True when any entry of ``arrays`` is NaN or infinite."""
+        return not all(np.isfinite(a).all() for a in arrays)
+
+    def _failure(self, degenerate: bool, nonfinite: bool, st, ctx, bad=None) -> str | None:
+        """The group's failure message, the first that applies: a face of zero Jacobian,
+        non-finite forces or stresses, points the law cannot accept (:meth:`_inadmissible`)."""
+        if degenerate:
+            return f"contact {self.name}: degenerate face (zero Jacobian)"
+        if nonfinite:
+            return f"contact {self.name}: non-finite contact stresses"
+        return self._inadmissible(st, ctx, bad)
 
     def _inadmissible(self, st, ctx, bad=None) -> str | None:
         """A failure message when the law finds points it cannot accept

@@ -387,12 +387,7 @@ class TwoBodyGroup(ContactGroup):
             raise CutbackRequest(f"contact {self.name}: points slid out of their search window "
                                  f"(SEARCH={self.search:g}); a smaller increment re-pairs them",
                                  factor=0.5)
-        p, tau = np.asarray(st["p"], float), np.asarray(st["tau"], float)
-        if stab is not None:
-            p, tau = self._stabilise(stab, st, extra, D, tangent)
-        else:
-            st["ps"], st["ts"] = np.zeros(self.ng), np.zeros(self.ng)
-        st = self._increment_totals(st, state, P, t, geo, extra[0], extra[1], extra[3])
+        st, p, tau = self._end_stresses(stab, st, state, extra, D, tangent, P, t, geo)
         Rt = right_normal(t)
         vec = p[:, None] * Rt - tau[:, None] * t                  # (p e_u + tau e_v) |t|
         wt, Dwt = self._weights(P, geo)
@@ -400,13 +395,7 @@ class TwoBodyGroup(ContactGroup):
         Rop, dRop = self._row_operator(pr)                        # (g, nw, 2)
         f = np.einsum("gri,gi->gr", Rop, F).reshape(self.nf, self.nq, self.nw).sum(axis=1)
         jac = np.sqrt((t * t).sum(-1))
-        failure = None
-        if (jac <= self._jac_tol).any():
-            failure = f"contact {self.name}: degenerate face (zero Jacobian)"
-        elif not (np.isfinite(f).all() and np.isfinite(p).all() and np.isfinite(tau).all()):
-            failure = f"contact {self.name}: non-finite contact stresses"
-        else:
-            failure = self._inadmissible(st, ctx)
+        failure = self._failure((jac <= self._jac_tol).any(), self._nonfinite(f, p, tau), st, ctx)
         K = None
         if tangent:
             Dvec = Rt[:, :, None] * D["p"][:, None, :] - t[:, :, None] * D["tau"][:, None, :]
