@@ -22,6 +22,7 @@ NOT_LOADED = (
     "scipy.sparse.linalg", "scipy.linalg",  # SuperLU loaded by file (solver.superlu)
     "threadpoolctl",                        # OPENBLAS_NUM_THREADS set before numpy loads
     "xml.sax", "urllib.request",            # the VTU attribute quoting is ours
+    "importlib.metadata", "email",          # registry.scan_entry_points reads entry_points.txt
     # numpy's f2py and testing stay lazy modules (core.lazy_modules): never executed
     "numpy.f2py.crackfortran", "numpy.testing._private.utils",
 )
