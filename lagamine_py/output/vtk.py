@@ -135,8 +135,9 @@ def recovered(n_nodes: int, cells: list[CellBlock], fields, bounded: bool = True
              for b, c in enumerate(cells)]                           # (e, q, k) per block
     nodal = nodal_values(n_nodes, [(c.element, c.conn, g) for c, g in zip(cells, gauss)], bounded,
                          plan)
-    means = np.concatenate([np.einsum("q,eqk->ek", c.element.gauss_weights(), g)
-                            for c, g in zip(cells, gauss)])
+    weights = [plan.gauss_weights(c.element) if plan is not None else c.element.gauss_weights()
+               for c in cells]
+    means = np.concatenate([np.einsum("q,eqk->ek", w, g) for w, g in zip(weights, gauss)])
     return _split(nodal, fields), _split(means, fields)
 
 
@@ -302,6 +303,7 @@ class VtkWriter(Writer):
         self.fields: set[str] | None = None       # *OUTPUT, FIELDS= of the step; None: all
         self.parts: dict[str, int] = {"body": 0}  # block name -> part number
         self._plan: RecoveryPlan | None = None    # the body's recovery plan (fixed mesh)
+        self._references: dict[str, np.ndarray] = {}  # foundation -> its reference samples
 
     def start_run(self) -> None:
         self.outdir.mkdir(parents=True, exist_ok=True)
@@ -421,8 +423,12 @@ class VtkWriter(Writer):
     def _foundation_grid(self, r: IncrementResult, name: str, points):
         current = Foundation(points).sample(SAMPLES_PER_ARC)
         spec = self.model.foundations.get(name)
-        reference = (Foundation(spec.points).sample(SAMPLES_PER_ARC)
-                     if spec is not None and np.shape(spec.points) == np.shape(points) else current)
+        if spec is not None and np.shape(spec.points) == np.shape(points):
+            if name not in self._references:        # the deck's position: sampled once
+                self._references[name] = Foundation(spec.points).sample(SAMPLES_PER_ARC)
+            reference = self._references[name]
+        else:
+            reference = current
         m = len(reference) - 1
         grid = _grid(_vec3(reference), [np.column_stack([np.arange(m), np.arange(1, m + 1)])],
                      [np.full(m, VTK_LINE)])
