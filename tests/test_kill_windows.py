@@ -98,6 +98,26 @@ def kill_tearing_a_contact_row(step: int, increment: int):
     tables.ContactWriter.increment = increment_
 
 
+def kill_tearing_the_pvd(step: int, increment: int):
+    """At (step, increment) the VTU files are written and half of their new PVD lines are
+    written over the index's footer (a write cut short), then the process dies."""
+    from lagamine_py.output import vtk
+    real = vtk.VtkWriter._append_pvd
+
+    def append(self, first):
+        r = self.entries[first]
+        if r[0] == self._kill_time:
+            data = "".join(vtk._pvd_line(*e) for e in self.entries[first:]).encode()
+            with open(self.pvd_path, "r+b") as fh:
+                fh.seek(self._pvd_end)
+                fh.write(data[:len(data) // 2 + 5])
+            die()
+        real(self, first)
+    vtk.VtkWriter._append_pvd = append
+    # the time of (step, increment) in coulomb_block.dat: step 1 ends at 1, step 2 has 10 of 0.1
+    vtk.VtkWriter._kill_time = round(1.0 + 0.1 * increment, 10) if step == 2 else None
+
+
 def kill_at_close():
     """Every increment written and saved; killed as the files are being closed."""
     from lagamine_py.output import status
@@ -113,6 +133,7 @@ SCENARIOS = {
     "step 1 end, displacements half written": lambda: kill_writing_displacements(1),
     "step 2 increment 9, a contact row torn": lambda: kill_tearing_a_contact_row(2, 9),
     "run end, after the last restart point": lambda: kill_after_restart_point(2),
+    "step 2 increment 5, the PVD index torn": lambda: kill_tearing_the_pvd(2, 5),
     "run end, closing the files": kill_at_close,
 }
 

@@ -99,3 +99,29 @@ def test_homogeneous_compression_strains(deck_run):
     np.testing.assert_allclose(PE[..., :3].sum(axis=-1), 0.0, atol=1e-10 * scale)
     contraction = (PE[..., :3] ** 2).sum(axis=-1) + 2 * PE[..., 3] ** 2
     np.testing.assert_allclose(np.sqrt(2.0 / 3.0 * contraction), c.peeq, rtol=1e-8)
+
+
+def test_a_plan_computes_each_recovery_matrix_once():
+    """RecoveryPlan caches the recovery matrix and the Gauss weights per element class: the
+    same nodal values as without a plan, and one computation across many states."""
+    from lagamine_py.elements.quad import Q8PlaneStrain
+    from lagamine_py.output.recovery import RecoveryPlan, nodal_values
+
+    calls = []
+
+    class Counted(Q8PlaneStrain):
+        @classmethod
+        def recovery_matrix(cls, nq=None):
+            calls.append(nq)
+            return super().recovery_matrix(nq)
+
+    conn = np.array([[0, 1, 2, 3, 4, 5, 6, 7], [1, 8, 9, 2, 10, 11, 12, 5]])
+    rng = np.random.default_rng(2)
+    plan = RecoveryPlan(13, [conn])
+    for _ in range(3):
+        g = rng.normal(size=(2, 9, 2))
+        with_plan = nodal_values(13, [(Counted, conn, g)], plan=plan)
+        assert np.array_equal(with_plan, nodal_values(13, [(Q8PlaneStrain, conn, g)]))
+    assert calls == [9]
+    assert plan.gauss_weights(Counted) is plan.gauss_weights(Counted)
+    assert np.array_equal(plan.gauss_weights(Counted), Q8PlaneStrain.gauss_weights())

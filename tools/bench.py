@@ -10,6 +10,9 @@ Sub-commands (run from the repository root, in the project's venv)::
     python tools/bench.py solvers [--sizes 20x10 40x20 ...]        # SPLU vs PARDISO crossover
     python tools/bench.py startup [--trees A B]                     # --help, check, run of
                                                                     # the main job, whole process
+    python tools/bench.py floor [--decks D ...] [--repeat 7]       # a run against the process
+                                                                    # that only imports what it
+                                                                    # imports (the floor)
     python tools/bench.py first-run [--size 80x40]                 # fresh numba cache vs warm,
                                                                     # with and without `compile`
     python tools/bench.py vtu FILE.vtu                              # VTU encodings: time, size,
@@ -645,6 +648,64 @@ def bench_startup(repeat: int = 5, trees: list[Path] | None = None,
     return rows
 
 
+_MODULES_OF_RUN = """
+import json, sys
+from lagamine_py.cli import main
+status = main(["run", sys.argv[1], "-q", "--overwrite", "-o", sys.argv[2]])
+print(json.dumps([m for m in sys.modules if m != "__main__"]))
+"""
+
+_IMPORT_ONLY = """
+import importlib, json, sys
+from lagamine_py.core.threads import pin_openblas_at_load
+from lagamine_py.core.lazy_modules import defer_numpy_submodules
+pin_openblas_at_load()
+defer_numpy_submodules()          # as a run: numpy's f2py and testing stay lazy
+for m in json.load(open(sys.argv[1])):
+    if m not in sys.modules:
+        try:
+            importlib.import_module(m)
+        except Exception:         # a module some other import created under that name
+            pass
+"""
+
+
+def bench_floor(decks: list[Path], repeat: int = 7) -> list[dict]:
+    """The fixed cost no optimisation of ours removes: per deck, the best whole-process wall
+    time, least CPU time and peak memory of (a) ``python -c pass``, (b) ``import numpy,
+    scipy.sparse``, (c) a process that imports exactly the modules a run of the deck ends with
+    (read from a run, imported in that order, numpy's deferred modules left lazy as a run does)
+    and nothing else, and (d) the run itself (``lagamine-py run DECK``); interleaved, one MKL
+    and OpenMP thread, byte code as after an install (``PYTHONDONTWRITEBYTECODE`` unset)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    env.update(MKL_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for deck in decks:
+            deck = Path(deck).resolve()
+            res = subprocess.run([sys.executable, "-c", _MODULES_OF_RUN, str(deck), f"{tmp}/mods"],
+                                 capture_output=True, text=True, env=env, cwd=tmp, check=True)
+            (Path(tmp) / "modules.json").write_text(res.stdout.strip().splitlines()[-1])
+            jobs = {"python": [sys.executable, "-c", "pass"],
+                    "numpy_scipy_sparse": [sys.executable, "-c", "import numpy, scipy.sparse"],
+                    "imports_of_run": [sys.executable, "-c", _IMPORT_ONLY, f"{tmp}/modules.json"],
+                    "run": [sys.executable, "-m", "lagamine_py", "run", str(deck), "-q",
+                            "--overwrite", "-o", f"{tmp}/out"]}
+            best = {(j, k): np.inf for j in jobs for k in ("wall", "cpu", "peak_mb")}
+            for i in range(repeat + 1):
+                for j, argv in jobs.items():
+                    r = _process(argv, env, tmp)
+                    if i:                               # the first round warms the caches
+                        for k in ("wall", "cpu", "peak_mb"):
+                            best[j, k] = min(best[j, k], r[k])
+            row = {"deck": str(deck), "modules": len(json.loads((Path(tmp) / "modules.json").read_text()))}
+            row.update({f"{j}_{k}": best[j, k] for j in jobs for k in ("wall", "cpu", "peak_mb")})
+            row["load_average"] = os.getloadavg()
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    return rows
+
+
 def _process(argv: list[str], env: dict, cwd: str) -> dict:
     """Wall time, CPU time (user + system) and peak resident MB of one child process."""
     t0 = time.perf_counter()
@@ -884,6 +945,9 @@ def main(argv=None) -> int:
                    "this one), e.g. `git archive COMMIT | tar -x -C DIR`")
     p.add_argument("--no-bytecode", action="store_true", help="with PYTHONDONTWRITEBYTECODE=1 "
                    "(every start compiles lagamine_py from source)")
+    p = sub.add_parser("floor")
+    p.add_argument("--decks", type=Path, nargs="+", default=[DECK])
+    p.add_argument("--repeat", type=int, default=7)
     p = sub.add_parser("first-run")
     p.add_argument("--size", type=_size, default=(80, 40))
     p = sub.add_parser("vtu")
@@ -961,6 +1025,9 @@ def main(argv=None) -> int:
     if args.cmd == "startup":
         for row in bench_startup(args.repeat, args.trees, not args.no_bytecode):
             print(json.dumps(row))
+        return 0
+    if args.cmd == "floor":
+        bench_floor(args.decks, args.repeat)
         return 0
     if args.cmd == "first-run":
         print(json.dumps(bench_first_run(*args.size), indent=1))

@@ -84,13 +84,13 @@ class DeckIdentity:
 
 
 def write_atomic(path: Path, data: str | bytes) -> None:
-    """Replace ``path`` by ``data`` atomically: written to ``path.tmp``, flushed, renamed."""
+    """Replace ``path`` by ``data`` atomically: written to ``path.tmp``, closed, renamed (no
+    fsync: atomic against the death of the process, as the restart data; see
+    :mod:`lagamine_py.solver.restart`)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "wb" if isinstance(data, bytes) else "w") as fh:
         fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
     os.replace(tmp, path)
 
 
@@ -192,10 +192,8 @@ def _take_lock(outdir: Path) -> tuple[Path, str]:
             except FileNotFoundError:
                 pass
             continue
-        with os.fdopen(fd, "w") as fh:
+        with os.fdopen(fd, "w") as fh:     # no fsync: a lock is between live processes
             fh.write(json.dumps(me))
-            fh.flush()
-            os.fsync(fh.fileno())
         return lock, note
     raise DirectoryInUse(f"{outdir}: could not take the lock {lock} (other runs keep taking it)")
 

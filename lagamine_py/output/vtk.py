@@ -135,8 +135,9 @@ def recovered(n_nodes: int, cells: list[CellBlock], fields, bounded: bool = True
              for b, c in enumerate(cells)]                           # (e, q, k) per block
     nodal = nodal_values(n_nodes, [(c.element, c.conn, g) for c, g in zip(cells, gauss)], bounded,
                          plan)
-    means = np.concatenate([np.einsum("q,eqk->ek", c.element.gauss_weights(), g)
-                            for c, g in zip(cells, gauss)])
+    weights = [plan.gauss_weights(c.element) if plan is not None else c.element.gauss_weights()
+               for c in cells]
+    means = np.concatenate([np.einsum("q,eqk->ek", w, g) for w, g in zip(weights, gauss)])
     return _split(nodal, fields), _split(means, fields)
 
 
@@ -264,11 +265,32 @@ def _write_vtu(grid: _Grid, path: Path) -> None:
 
 
 def read_pvd(path: Path) -> list[tuple[float, int, str, str]]:
-    """(timestep, part, file, name) of each DataSet of a PVD file."""
+    """(timestep, part, file, name) of each DataSet of a PVD file, one per line as
+    :class:`VtkWriter` writes them; a line that is not a whole DataSet element (torn by a run
+    killed while appending, always at or after the time a resumed run starts from) is skipped."""
     import xml.etree.ElementTree as ET      # only to resume a series
-    root = ET.parse(path).getroot()
-    return [(float(d.get("timestep", 0)), int(d.get("part", 0)), d.get("file", ""),
-             d.get("name", "")) for d in root.iter("DataSet")]
+    out = []
+    for line in Path(path).read_text(errors="replace").splitlines():
+        line = line.strip()
+        if not line.startswith("<DataSet"):
+            continue
+        try:
+            d = ET.fromstring(line)
+        except ET.ParseError:
+            continue
+        out.append((float(d.get("timestep", 0)), int(d.get("part", 0)), d.get("file", ""),
+                    d.get("name", "")))
+    return out
+
+
+_PVD_HEAD = ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" '
+             'byte_order="LittleEndian">\n  <Collection>\n')
+_PVD_FOOT = "  </Collection>\n</VTKFile>\n"
+
+
+def _pvd_line(t: float, part: int, fname: str, name: str) -> str:
+    return (f'    <DataSet timestep="{t!r}" group="" part="{part}" name={quoteattr(name)} '
+            f'file={quoteattr(fname)}/>\n')
 
 
 class VtkWriter(Writer):
@@ -281,6 +303,7 @@ class VtkWriter(Writer):
         self.fields: set[str] | None = None       # *OUTPUT, FIELDS= of the step; None: all
         self.parts: dict[str, int] = {"body": 0}  # block name -> part number
         self._plan: RecoveryPlan | None = None    # the body's recovery plan (fixed mesh)
+        self._references: dict[str, np.ndarray] = {}  # foundation -> its reference samples
 
     def start_run(self) -> None:
         self.outdir.mkdir(parents=True, exist_ok=True)
@@ -324,12 +347,13 @@ class VtkWriter(Writer):
         blocks += [(f"foundation {name}", stem.format(f"foundation_{file_tag(name)}_"),
                     self._foundation_grid(result, name, pts))
                    for name, pts in result.foundations.items()]
+        first = len(self.entries)
         for name, fname, grid in blocks:
             _write_vtu(grid, self.outdir / fname)
             part = self.parts.setdefault(name, len(self.parts))
             self.entries.append((float(result.time), part, fname, name))
         self.counter += 1
-        self._write_pvd()
+        self._append_pvd(first)
 
     def start_step(self, step_number: int, step) -> None:
         fields = step.output.fields
@@ -399,8 +423,12 @@ class VtkWriter(Writer):
     def _foundation_grid(self, r: IncrementResult, name: str, points):
         current = Foundation(points).sample(SAMPLES_PER_ARC)
         spec = self.model.foundations.get(name)
-        reference = (Foundation(spec.points).sample(SAMPLES_PER_ARC)
-                     if spec is not None and np.shape(spec.points) == np.shape(points) else current)
+        if spec is not None and np.shape(spec.points) == np.shape(points):
+            if name not in self._references:        # the deck's position: sampled once
+                self._references[name] = Foundation(spec.points).sample(SAMPLES_PER_ARC)
+            reference = self._references[name]
+        else:
+            reference = current
         m = len(reference) - 1
         grid = _grid(_vec3(reference), [np.column_stack([np.arange(m), np.arange(1, m + 1)])],
                      [np.full(m, VTK_LINE)])
@@ -421,14 +449,27 @@ class VtkWriter(Writer):
 
     # -- index ---------------------------------------------------------------------------
     def _write_pvd(self) -> None:
-        """Rewrite the PVD index atomically (tmp file + rename), so a reader never sees half."""
-        lines = ['<?xml version="1.0"?>',
-                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-                 "  <Collection>"]
-        lines += [f'    <DataSet timestep="{t!r}" group="" part="{part}" name={quoteattr(name)} '
-                  f'file={quoteattr(fname)}/>' for t, part, fname, name in self.entries]
-        lines += ["  </Collection>", "</VTKFile>", ""]
+        """Rewrite the PVD index atomically (tmp file + rename): at the start and on resuming."""
+        self._lines = [_pvd_line(*e) for e in self.entries]
+        body = (_PVD_HEAD + "".join(self._lines)).encode()
         tmp = self.pvd_path.with_name(self.pvd_path.name + ".tmp")
-        with open(tmp, "w") as fh:
-            fh.write("\n".join(lines))
+        with open(tmp, "wb") as fh:
+            fh.write(body + _PVD_FOOT.encode())
         os.replace(tmp, self.pvd_path)
+        self._pvd_end = len(body)           # where the footer starts
+
+    def _append_pvd(self, first: int) -> None:
+        """Add the entries from ``first`` on: written over the footer, with the footer, in one
+        write.  Not a rewrite and rename: the index grows by a line per block and state, and a
+        rename over the old file costs 0.1-3 ms of wall time on ext4 (it starts the new file's
+        write-back) and the whole index's formatting, quadratic in the run's length (1.6 ms at
+        650 entries).  A reader sees the new index or, during that one write, its old entries
+        with part of the new; a run killed then leaves a torn last line, which a resumed run
+        (:func:`read_pvd`) skips and rewrites."""
+        new = [_pvd_line(*e) for e in self.entries[first:]]
+        self._lines += new
+        data = "".join(new).encode()
+        with open(self.pvd_path, "r+b") as fh:
+            fh.seek(self._pvd_end)
+            fh.write(data + _PVD_FOOT.encode())
+        self._pvd_end += len(data)

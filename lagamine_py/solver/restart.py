@@ -1,13 +1,20 @@
 """Restart data: what a run needs to resume after its last converged increment.
 
-Saved with ``np.savez`` after every converged increment, atomically (a temporary file renamed
-over the previous one), in ``OUT/restart.npz``: the displacement, the committed state of every
-group, the reactions, the step index, the time within the step, the next time increment, the
-increment counters, the current step's resolved loads (:class:`~lagamine_py.solver.loads.StepLoads`)
-and the deck: its absolute path, the digest of its expanded text and the parameter values
-given on the command line (:class:`~lagamine_py.core.outdir.DeckIdentity`).  A restart of a
-deck whose digest differs is refused (:class:`RestartMismatch`, exit status 2): it would go on
-from the state of another model.
+Saved with ``np.savez`` after every converged increment, in ``OUT/restart.npz``: the
+displacement, the committed state of every group, the reactions, the step index, the time within
+the step, the next time increment, the increment counters, the current step's resolved loads
+(:class:`~lagamine_py.solver.loads.StepLoads`) and the deck: its absolute path, the digest of its
+expanded text and the parameter values given on the command line
+(:class:`~lagamine_py.core.outdir.DeckIdentity`).  A restart of a deck whose digest differs is
+refused (:class:`RestartMismatch`, exit status 2): it would go on from the state of another model.
+
+Written atomically (a temporary file renamed over the previous one: a process killed at any
+moment leaves the old file or the new one) and not fsynced: the rename is what protects against
+the death of the process (SIGKILL, a crash), whose written pages the OS keeps; an fsync would
+only add durability against a crash of the machine, which the CSV and VTU files the restart
+point must agree with do not have either, and it cost ~6 ms of wall time a save on this
+machine's disk (0.1 s of the main job's 0.7 s).  Abaqus and CalculiX write restart data only
+when a deck asks for it (``*RESTART, WRITE``).
 """
 from __future__ import annotations
 
@@ -50,8 +57,6 @@ def save(outdir: Path, data: dict[str, np.ndarray]) -> None:
             fh.write(buf.getbuffer())
         else:
             np.savez(fh, **data)
-        fh.flush()
-        os.fsync(fh.fileno())
     os.replace(tmp, outdir / FILE)
 
 
