@@ -161,7 +161,7 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     return conv
 
 
-def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor, u_start,
+def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floor, u_start,
             predicted, observers) -> Converged:
     """The iterations of :func:`solve_increment`."""
     c = free.constrained
@@ -174,6 +174,7 @@ def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, flo
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
     energy0 = None
+    solves = 0                 # the iteration count: a pass that only reviews solves nothing
     for k in range(settings.maxit + 1):
         R = ev.f_int - f_ext
         Rf = R[free.free]
@@ -186,9 +187,9 @@ def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, flo
         if not imposing and rel <= settings.rtol:
             if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged", k, rel)
-                return Converged(u, ev.states, ev.f_int, k, rel, scale, history)
+                return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
             done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
-                                      scale, settings.rtol, history, k)
+                                      scale, settings.rtol, history, k, solves)
             if done is not None:
                 return done
             continue
@@ -203,7 +204,8 @@ def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, flo
         # a solve on the factor in hand stops at a linear residual that leaves the next
         # iterate's residual as it would be (forcing) or below a tenth of the tolerance
         atol = max(forcing(history) * float(np.linalg.norm(rhs)), 0.1 * settings.rtol * scale)
-        du_f = _linear_solve(solves, free, ev.data, rhs, atol)
+        du_f = _linear_solve(reuse, free, ev.data, rhs, atol)
+        solves += 1
         energy = abs(float(du_f @ rhs))
         log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
         if not np.all(np.isfinite(du_f)):
@@ -222,12 +224,12 @@ def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, flo
             history.append(rel)
             if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged (energy)", k + 1, rel)
-                return Converged(u, ev.states, ev.f_int, k + 1, rel, scale, history)
+                return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
             # held values: the increment's own context must give the same (energy-converged)
             # residual
             done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
                                       scale, max(settings.rtol, rel * (1.0 + 1e-6)), history,
-                                      k + 1)
+                                      k + 1, solves)
             if done is not None:
                 return done
             continue
@@ -289,10 +291,11 @@ def _predicted_energy(problem, data, d: np.ndarray) -> float:
     return abs(float(d @ (problem.pattern.matrix(data) @ d)))
 
 
-def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, history, k):
+def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, history, k, solves):
     """Acceptance of a solve converged under an observer's context: the increment's own context
     (the free law, without held values) evaluated at ``u`` must satisfy the tolerance too.
 
+    ``k``: the pass (for the log), ``solves``: the linear solves so far (the iterations).
     Returns ``(Converged | None, ev, ctx_k)``: the accepted result, with the free law's states;
     or None with the evaluation and context to iterate on (the observers' :meth:`settle`).
     Raises the observer's failure when it cannot settle."""
@@ -302,7 +305,7 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
     if rel <= tol:
         history[-1] = rel           # the same iterate u: its residual with the states accepted
         log.info("    iter %2d  |R|/F = %.3e  converged (%s agree with the free law)", k, rel, held)
-        return Converged(u, ev.states, ev.f_int, k, rel, scale, history), ev, ctx
+        return Converged(u, ev.states, ev.f_int, solves, rel, scale, history), ev, ctx
     log.info("    iter %2d  %s disagree with the free law (|R|/F = %.3e)", k, held, rel)
     ctx_k = watch.settle(ctx, ev.states,
                          f"{held} disagree with the free law at convergence (|R|/F = {rel:.3e} "
