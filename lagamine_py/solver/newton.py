@@ -76,7 +76,8 @@ class Settings:
 class IterationObserver:
     """Watches the iterations of one increment (a new one per increment).
 
-    :meth:`context` is called after every solve with the states of the last evaluation and
+    :meth:`start` gives the context of the first evaluation; :meth:`context` is called after
+    every solve with the states of the last evaluation and
     returns the context of the next evaluation (the increment's own, or one that changes the
     problem: held contact points, say).  While the observer is :attr:`active` (it has changed
     the problem), a converged iterate is reviewed with the increment's own context; if that does
@@ -93,6 +94,10 @@ class IterationObserver:
     @property
     def active(self) -> bool:
         return False
+
+    def start(self, ctx):
+        """The context of the increment's first evaluation (a predicted state held, say)."""
+        return ctx
 
     def context(self, ctx, states):
         return ctx
@@ -170,7 +175,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
     du_imposed[c] = u_c - u[c]
     imposing = bool(np.any(du_imposed[c] != 0.0))
     watch = _Observers(observers)
-    ctx_k = ctx
+    ctx_k = watch.start(ctx)
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
     energy0 = None
@@ -256,6 +261,11 @@ class _Observers:
     @property
     def active(self) -> bool:
         return any(o.active for o in self.all)
+
+    def start(self, ctx):
+        for o in self.all:
+            ctx = o.start(ctx)
+        return ctx
 
     def context(self, ctx, states):
         for o in self.all:
