@@ -145,3 +145,31 @@ def test_front_prediction_saves_iterations_on_press_then_slide(tmp_path, monkeyp
     assert sum(with_) < sum(without), (with_, without)
     assert P1 == pytest.approx(P0, rel=1e-9) and T1 == pytest.approx(T0, rel=1e-9)
     assert abs(T1) == pytest.approx(0.2 * P1, rel=1e-6)
+
+
+def test_a_resumed_run_predicts_the_same_fronts(tmp_path):
+    """The fronts of the last increment are part of the restart data: the main job interrupted
+    while the sixth slide increment is handed out resumes from the fifth (the stick zone then
+    shrinks from both ends) and computes the sixth with the fronts of the fifth: the
+    uninterrupted run's iterations (3, against 4 without the prediction) and answers."""
+    from lagamine_py.deck import load_deck
+    from lagamine_py.solver import run
+    from runner import Capture
+
+    class Stop(Capture):
+        def increment(self, result):
+            super().increment(result)
+            if (result.step, result.increment) == (2, 6):
+                raise KeyboardInterrupt
+
+    def go(out, writer, restart=False):
+        return run(load_deck(DECK), out, writers=[writer], restart=restart, deck_path=DECK)
+
+    full, first, second = Capture(), Stop(), Capture()
+    assert go(tmp_path / "full", full).status == 0
+    assert go(tmp_path / "cut", first).status == 130
+    assert go(tmp_path / "cut", second, restart=True).status == 0
+    k = len(first.results) - 1                       # the interrupted increment runs again
+    assert [r.iterations for r in second.results] == [r.iterations for r in full.results[k:]]
+    for a, b in zip(second.results, full.results[k:]):
+        assert np.abs(a.u - b.u).max() <= 1e-12 * np.abs(b.u).max()
