@@ -215,3 +215,15 @@ def test_a_failed_review_is_not_an_iteration():
     assert conv.u == pytest.approx(f_ext / 2.0, rel=1e-14)
     assert conv.factorisations == 3
     assert conv.iterations == 3
+
+
+def test_a_failed_attempt_reports_its_solves():
+    """An attempt stopped by MAXIT after a failed review: two solves (free, held), a review
+    pass, and the pass that stops it; the failure carries the solves, not the passes."""
+    problem, free = setup([HeldSprings([[GROUND, 0], [GROUND, 1]], 2.0)], 1, [])
+    with pytest.raises(IterationLimit) as err:
+        solve_increment(problem, SpluSolver(), free, np.zeros(2), problem.init_states(),
+                        StepContext(), np.zeros(0), np.array([3.0, 1.0]), Settings(maxit=3),
+                        observers=(HoldUntilReviewed(),))
+    assert err.value.solves == 2
+    assert len(err.value.history) == 4

@@ -159,8 +159,13 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     """
     solves = solves if solves is not None else FactorReuse(solver)
     f0, b0 = solves.counts()
-    conv = _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor,
-                   u_start, predicted, observers)
+    s0 = solves.solves
+    try:
+        conv = _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor,
+                       u_start, predicted, observers)
+    except ConvergenceFailure as exc:
+        exc.solves = solves.solves - s0          # the attempt's iterations
+        raise
     conv.factorisations = solves.factorisations - f0
     conv.back_substitutions = solves.back_substitutions - b0
     return conv

@@ -656,11 +656,13 @@ class Controller:
 
     def _report_failure(self, si, step, inc, t, dt, cutbacks, exc, reason) -> None:
         history = exc.history if isinstance(exc, ConvergenceFailure) else []
+        solves = exc.solves if isinstance(exc, ConvergenceFailure) else None
         log.warning("  step %d increment %d: attempt with dt %g failed (%s); cutting back",
                     si + 1, inc + 1, dt, reason)
         attempt = FailedAttempt(step=si + 1, step_name=step.name, increment=inc + 1,
                                 time=self.time_offset + t, step_time=t, dt=dt, reason=exc.reason,
-                                message=reason, iterations=max(len(history) - 1, 0),
+                                message=reason,
+                                iterations=max(len(history) - 1, 0) if solves is None else solves,
                                 residual_history=list(history), cutbacks=cutbacks)
         for w in self.active:
             w.failed_attempt(attempt)
