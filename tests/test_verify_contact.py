@@ -288,32 +288,3 @@ def test_flip_flop_tracker_sees_slip_reversals_and_settles():
     assert ff.settle(ctx, free).freeze_contact["S->F"].tolist() == [2, 2, -1]
     assert ff.settle(ctx, free) is not None          # second round allowed
     assert ff.settle(ctx, free) is None              # then the increment must be cut back
-
-
-def test_flip_flop_settles_further_while_the_disagreement_shrinks():
-    """Beyond ``max_rounds`` re-freezes, ``settle`` goes on (up to ``more_rounds``) only while
-    each review contradicts fewer frozen points than the one before."""
-    from lagamine_py.elements.base import StepContext
-    from lagamine_py.solver.stabilisation import FlipFlop
-
-    def frozen_flipflop():
-        ff = FlipFlop({0: "S->F"}, limit=1)
-        for st in (2, 1):                       # every point switches once: all frozen STICK
-            ff.context(StepContext(), [{"status": np.full(6, st, np.int8), "tau": np.ones(6),
-                                        "p": np.ones(6)}])
-        assert ff.frozen[0].tolist() == [1] * 6
-        return ff
-
-    def review(ff, n):
-        """The free law contradicting ``n`` frozen points."""
-        fz = ff.frozen[0]
-        status = fz.copy()
-        status[:n] = 3 - fz[:n]                 # stick <-> slip
-        return ff.settle(StepContext(), [{"status": status, "tau": np.ones(6), "p": np.ones(6)}])
-
-    ff = frozen_flipflop()
-    assert all(review(ff, n) is not None for n in (5, 4, 3, 2, 1))     # shrinking: 5 rounds
-    assert review(ff, 0) is None                                         # no sixth
-    ff = frozen_flipflop()
-    assert review(ff, 3) is not None and review(ff, 3) is not None      # the two rounds
-    assert review(ff, 3) is None                                         # not shrinking: stop

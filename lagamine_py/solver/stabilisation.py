@@ -43,21 +43,14 @@ class FlipFlop(IterationObserver):
 
     Freezing changes the law Newton solves, so a converged increment is accepted only if the
     free law agrees (:meth:`settle`); where it does not, the points concerned take the free
-    law's status and Newton goes on, at most ``max_rounds`` times, or ``more_rounds`` while
-    the points contradicted get fewer from round to round.
+    law's status and Newton goes on, at most ``max_rounds`` times.
 
     ``watched``: group index -> contact group name, the groups whose states are watched.
     ``ctx.freeze_contact`` becomes ``{group_name: (g,) int8}`` with -1 for free points and the
     status to hold otherwise (None while nothing is frozen).
     """
 
-    #: re-freezes after a failed review: ``max_rounds`` always, up to ``more_rounds`` while
-    #: each round has fewer frozen points disagreeing with the free law than the one before.
-    #: At the onset of sliding at 320x160 the free law's residual at the reviewed iterates fell
-    #: about 2x per round (1.4e-2, 9.3e-3, 4.3e-3) when two rounds cut the increment back;
-    #: MAXIT bounds the increment whatever the rounds
     max_rounds = 2
-    more_rounds = 5
     held = "frozen contact points"
     failure = ContactNotSettled
 
@@ -69,7 +62,6 @@ class FlipFlop(IterationObserver):
         self.both_ways: dict[int, np.ndarray] = {}
         self.frozen: dict[int, np.ndarray] = {}
         self.rounds = 0
-        self.disagreeing: int | None = None     # frozen points the last review contradicted
 
     @property
     def active(self) -> bool:
@@ -118,14 +110,11 @@ class FlipFlop(IterationObserver):
         give the frozen points where the free law disagrees the free law's status (held) and
         return the context for more iterations; None when ``max_rounds`` are used up."""
         self.rounds += 1
-        wrong = {k: (self.frozen[k] >= 0) & (self.frozen[k] != status)
-                 for k, status, _ in self._states(free_states) if k in self.frozen}
-        count = sum(int(w.sum()) for w in wrong.values())
-        shrinking = self.disagreeing is not None and count < self.disagreeing
-        self.disagreeing = count
-        if self.rounds > (self.more_rounds if shrinking else self.max_rounds):
+        if self.rounds > self.max_rounds:
             return None
         for k, status, _ in self._states(free_states):
-            if k in wrong:
-                self.frozen[k][wrong[k]] = status[wrong[k]]
+            fz = self.frozen.get(k)
+            if fz is not None:
+                wrong = (fz >= 0) & (fz != status)
+                fz[wrong] = status[wrong]
         return self._with_frozen(ctx)
