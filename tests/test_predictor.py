@@ -173,3 +173,30 @@ def test_a_resumed_run_predicts_the_same_fronts(tmp_path):
     assert [r.iterations for r in second.results] == [r.iterations for r in full.results[k:]]
     for a, b in zip(second.results, full.results[k:]):
         assert np.abs(a.u - b.u).max() <= 1e-12 * np.abs(b.u).max()
+
+
+def test_a_cut_back_attempt_predicts_no_front(tmp_path, monkeypatch):
+    """The prediction may be what failed: the first predicted attempt of the main job is made to
+    fail once; its retry (smaller) holds nothing, and the run goes on to the same end state."""
+    from lagamine_py.core.errors import IterationLimit
+    from lagamine_py.solver import steps
+
+    real = steps.solve_increment
+    calls = []
+
+    def fail_first_predicted(*a, observers=(), **k):
+        predicted = bool(observers[0].holds)
+        calls.append(predicted)
+        if predicted and calls.count(True) == 1:
+            raise IterationLimit("made to fail", [1.0], factor=0.9)   # a retry almost as long
+        return real(*a, observers=observers, **k)
+
+    monkeypatch.setattr(steps, "solve_increment", fail_first_predicted)
+    outcome, cap, _ = run_deck(DECK, tmp_path / "out")
+    assert outcome.status == 0, outcome.message
+    first = calls.index(True)
+    assert calls[first + 1] is False                  # the retry of that increment
+    assert len(cap.failures) == 1 and cap.failures[0].dt > cap.results[first].dt
+    assert True in calls[first + 2:]                  # later increments predict again
+    totals = read_table(tmp_path / "out" / "contact_totals.csv")
+    assert abs(float(totals["T"][-1])) == pytest.approx(0.2 * float(totals["P"][-1]), rel=1e-6)
