@@ -200,3 +200,31 @@ def test_a_cut_back_attempt_predicts_no_front(tmp_path, monkeypatch):
     assert True in calls[first + 2:]                  # later increments predict again
     totals = read_table(tmp_path / "out" / "contact_totals.csv")
     assert abs(float(totals["T"][-1])) == pytest.approx(0.2 * float(totals["P"][-1]), rel=1e-6)
+
+
+def test_augmentations_start_without_the_prediction(tmp_path, monkeypatch):
+    """METHOD=AUGMENTED solves an increment again from its converged solve: the fronts are held
+    at the first evaluation of the increment's first solve only."""
+    from lagamine_py.solver import steps
+
+    text = DECK.read_text().replace("B=0, THETA=1, SUBSTEPS=1",
+                                    "B=0, THETA=1, SUBSTEPS=1, METHOD=AUGMENTED, PTOL=3e-6")
+    deck = tmp_path / "ps_augmented.dat"
+    deck.write_text(text)
+    real = steps.solve_increment
+    calls = []                                        # (increment end time, holds at the call)
+
+    def recording(problem, solver, free, u_old, states, ctx, *a, observers=(), **k):
+        calls.append((ctx.t_new, observers[0].active))
+        return real(problem, solver, free, u_old, states, ctx, *a, observers=observers, **k)
+
+    monkeypatch.setattr(steps, "solve_increment", recording)
+    outcome, cap, _ = run_deck(deck, tmp_path / "out")
+    assert outcome.status == 0, outcome.message
+    times = [t for t, _ in calls]
+    again = [t for t in set(times) if times.count(t) > 1]
+    assert again                                      # increments that were augmented
+    assert any(held for _, held in calls)             # and fronts predicted
+    for t in set(times):
+        held = [h for tt, h in calls if tt == t]
+        assert not any(held[1:]), (t, held)

@@ -502,6 +502,9 @@ class Controller:
         # the increment is cut back), not a warning on the terminal
         contact = problem.indices(CONTACT)
         states, solves, iterations, ratio = self.states, 0, 0, 0.0
+        # one predictor for the increment: the fronts are held at the first evaluation of its
+        # first solve only, not again from the converged solve an augmentation starts from
+        fronts = self._front_predictor(front, last, dt, controls)
         factorisations = back_substitutions = 0
         while True:
             try:
@@ -509,8 +512,7 @@ class Controller:
                     trial = solve_increment(
                         problem, solver, free, self.u, states, ctx, u_c, f_ext, settings,
                         floor=FLOOR_FRACTION * self.force_ref, u_start=start, predicted=predicted,
-                        observers=(self._front_predictor(front, last, dt, controls),
-                                   FlipFlop(watched, int(controls["FLIPFLOP"]))),
+                        observers=(fronts, FlipFlop(watched, int(controls["FLIPFLOP"]))),
                         solves=self._solves)
             except ConvergenceFailure as exc:
                 if solves == 0:
