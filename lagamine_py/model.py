@@ -233,7 +233,7 @@ CONTROL_PARAMS: tuple[Param, ...] = (
           doc="numba kernels (NUMBA, needs the fast extra), NumPy (NUMPY), or numba from "
               f"{kernels.AUTO_NUMBA_ELEMENTS} solid elements when installed (AUTO)"),
     Param("EXTRAPOLATION", str, "LINEAR", choices=("LINEAR", "NONE"),
-          doc="first iterate of an increment: the last increment of the step, scaled (LINEAR), or none"),
+          doc="first iterate of an increment: the last increment of the step, scaled, its slip fronts moved on at their speed (LINEAR), or none"),
     Param("FLIPFLOP", int, 4, (1, 100), doc="contact status switches or slip reversals of a point before it is frozen"),
     Param("SDI", bool, True,
           doc="a residual growing while contact points change state is not a divergence (severe discontinuity iterations; MAXIT still bounds the increment)"),

@@ -42,8 +42,8 @@ def kill_after_restart_point(step: int):
     from lagamine_py.solver import steps
     real = steps.Controller._save_restart
 
-    def save(self, si, loads, stepper, last=None):
-        real(self, si, loads, stepper, last)
+    def save(self, si, loads, stepper, *rest):
+        real(self, si, loads, stepper, *rest)
         if si + 1 == step and stepper.finished:
             die()
     steps.Controller._save_restart = save

@@ -1,11 +1,13 @@
 """Newton on one increment, with fake spring groups whose tangent is exact."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from lagamine_py.elements.base import StepContext
 from lagamine_py.core.errors import DivergingResidual, GroupFailure, IterationLimit, NotANumber
 from lagamine_py.solver.linear import FreeDofs, SingularMatrixError, SpluSolver
-from lagamine_py.solver.newton import Settings, solve_increment
+from lagamine_py.solver.newton import IterationObserver, Settings, solve_increment
 
 from test_solver_fakes import GROUND, Atan, Failing, PlasticSprings, Springs, make_model, make_problem
 
@@ -165,3 +167,63 @@ def test_check_tangent_tool():
     assert problem.check_tangent(u, u, problem.init_states(), StepContext()) < 1e-7
     problem, _ = setup([WrongTangent([[GROUND, 0], [0, 2]], 1.0, a=1.0)] + cubic_chain()[1:], 3, [])
     assert problem.check_tangent(u, u, problem.init_states(), StepContext()) > 1e-3
+
+
+class HeldSprings(Springs):
+    """Springs ten times stiffer while a context holds values (``ctx.freeze_contact`` set)."""
+
+    def compute(self, u_new, u_old, state, ctx, tangent=True):
+        res = super().compute(u_new, u_old, state, ctx, tangent)
+        if ctx.freeze_contact is not None:
+            res.f = res.f * 10.0
+            res.K = None if res.K is None else res.K * 10.0
+        return res
+
+
+class HoldUntilReviewed(IterationObserver):
+    """Holds from the first solve on; the review with the free law then fails (the held
+    springs are stiffer), and :meth:`settle` releases."""
+
+    def __init__(self):
+        self.holding = True
+        self.settled = 0
+
+    @property
+    def active(self):
+        return self.holding
+
+    def context(self, ctx, states):
+        return replace(ctx, freeze_contact={"held": np.zeros(1, np.int8)}) if self.holding else ctx
+
+    def settle(self, ctx, states):
+        self.holding = False
+        self.settled += 1
+        return ctx
+
+
+def test_a_failed_review_is_not_an_iteration():
+    """The iterations of an increment are its linear solves: the pass that re-evaluates the
+    iterate with the settled context after a failed review solves nothing.  Linear springs,
+    so each context converges in one solve: free (start), held (u = F/10k, reviewed and
+    rejected), free again (u = F/k): three solves, three factorisations, four passes."""
+    problem, free = setup([HeldSprings([[GROUND, 0], [GROUND, 1]], 2.0)], 1, [])
+    f_ext = np.array([3.0, 1.0])
+    watch = HoldUntilReviewed()
+    conv = solve_increment(problem, SpluSolver(), free, np.zeros(2), problem.init_states(),
+                           StepContext(), np.zeros(0), f_ext, Settings(), observers=(watch,))
+    assert watch.settled == 1
+    assert conv.u == pytest.approx(f_ext / 2.0, rel=1e-14)
+    assert conv.factorisations == 3
+    assert conv.iterations == 3
+
+
+def test_a_failed_attempt_reports_its_solves():
+    """An attempt stopped by MAXIT after a failed review: two solves (free, held), a review
+    pass, and the pass that stops it; the failure carries the solves, not the passes."""
+    problem, free = setup([HeldSprings([[GROUND, 0], [GROUND, 1]], 2.0)], 1, [])
+    with pytest.raises(IterationLimit) as err:
+        solve_increment(problem, SpluSolver(), free, np.zeros(2), problem.init_states(),
+                        StepContext(), np.zeros(0), np.array([3.0, 1.0]), Settings(maxit=3),
+                        observers=(HoldUntilReviewed(),))
+    assert err.value.solves == 2
+    assert len(err.value.history) == 4

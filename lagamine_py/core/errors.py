@@ -42,6 +42,8 @@ class ConvergenceFailure(Exception):
     step's)."""
 
     reason = "failed"
+    #: the linear solves the attempt took (set by Newton; None: count ``history``)
+    solves: int | None = None
 
     def __init__(self, message: str, history: list[float] | None = None,
                  factor: float | None = None):

@@ -76,7 +76,8 @@ class Settings:
 class IterationObserver:
     """Watches the iterations of one increment (a new one per increment).
 
-    :meth:`context` is called after every solve with the states of the last evaluation and
+    :meth:`start` gives the context of the first evaluation; :meth:`context` is called after
+    every solve with the states of the last evaluation and
     returns the context of the next evaluation (the increment's own, or one that changes the
     problem: held contact points, say).  While the observer is :attr:`active` (it has changed
     the problem), a converged iterate is reviewed with the increment's own context; if that does
@@ -93,6 +94,10 @@ class IterationObserver:
     @property
     def active(self) -> bool:
         return False
+
+    def start(self, ctx):
+        """The context of the increment's first evaluation (a predicted state held, say)."""
+        return ctx
 
     def context(self, ctx, states):
         return ctx
@@ -154,14 +159,19 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     """
     solves = solves if solves is not None else FactorReuse(solver)
     f0, b0 = solves.counts()
-    conv = _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor,
-                   u_start, predicted, observers)
+    s0 = solves.solves
+    try:
+        conv = _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor,
+                       u_start, predicted, observers)
+    except ConvergenceFailure as exc:
+        exc.solves = solves.solves - s0          # the attempt's iterations
+        raise
     conv.factorisations = solves.factorisations - f0
     conv.back_substitutions = solves.back_substitutions - b0
     return conv
 
 
-def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor, u_start,
+def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floor, u_start,
             predicted, observers) -> Converged:
     """The iterations of :func:`solve_increment`."""
     c = free.constrained
@@ -170,10 +180,11 @@ def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, flo
     du_imposed[c] = u_c - u[c]
     imposing = bool(np.any(du_imposed[c] != 0.0))
     watch = _Observers(observers)
-    ctx_k = ctx
+    ctx_k = watch.start(ctx)
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
     energy0 = None
+    solves = 0                 # the iteration count: a pass that only reviews solves nothing
     for k in range(settings.maxit + 1):
         R = ev.f_int - f_ext
         Rf = R[free.free]
@@ -186,9 +197,9 @@ def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, flo
         if not imposing and rel <= settings.rtol:
             if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged", k, rel)
-                return Converged(u, ev.states, ev.f_int, k, rel, scale, history)
+                return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
             done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
-                                      scale, settings.rtol, history, k)
+                                      scale, settings.rtol, history, k, solves)
             if done is not None:
                 return done
             continue
@@ -203,7 +214,8 @@ def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, flo
         # a solve on the factor in hand stops at a linear residual that leaves the next
         # iterate's residual as it would be (forcing) or below a tenth of the tolerance
         atol = max(forcing(history) * float(np.linalg.norm(rhs)), 0.1 * settings.rtol * scale)
-        du_f = _linear_solve(solves, free, ev.data, rhs, atol)
+        du_f = _linear_solve(reuse, free, ev.data, rhs, atol)
+        solves += 1
         energy = abs(float(du_f @ rhs))
         log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
         if not np.all(np.isfinite(du_f)):
@@ -222,12 +234,12 @@ def _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, flo
             history.append(rel)
             if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged (energy)", k + 1, rel)
-                return Converged(u, ev.states, ev.f_int, k + 1, rel, scale, history)
+                return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
             # held values: the increment's own context must give the same (energy-converged)
             # residual
             done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
                                       scale, max(settings.rtol, rel * (1.0 + 1e-6)), history,
-                                      k + 1)
+                                      k + 1, solves)
             if done is not None:
                 return done
             continue
@@ -254,6 +266,11 @@ class _Observers:
     @property
     def active(self) -> bool:
         return any(o.active for o in self.all)
+
+    def start(self, ctx):
+        for o in self.all:
+            ctx = o.start(ctx)
+        return ctx
 
     def context(self, ctx, states):
         for o in self.all:
@@ -289,10 +306,11 @@ def _predicted_energy(problem, data, d: np.ndarray) -> float:
     return abs(float(d @ (problem.pattern.matrix(data) @ d)))
 
 
-def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, history, k):
+def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, history, k, solves):
     """Acceptance of a solve converged under an observer's context: the increment's own context
     (the free law, without held values) evaluated at ``u`` must satisfy the tolerance too.
 
+    ``k``: the pass (for the log), ``solves``: the linear solves so far (the iterations).
     Returns ``(Converged | None, ev, ctx_k)``: the accepted result, with the free law's states;
     or None with the evaluation and context to iterate on (the observers' :meth:`settle`).
     Raises the observer's failure when it cannot settle."""
@@ -302,7 +320,7 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
     if rel <= tol:
         history[-1] = rel           # the same iterate u: its residual with the states accepted
         log.info("    iter %2d  |R|/F = %.3e  converged (%s agree with the free law)", k, rel, held)
-        return Converged(u, ev.states, ev.f_int, k, rel, scale, history), ev, ctx
+        return Converged(u, ev.states, ev.f_int, solves, rel, scale, history), ev, ctx
     log.info("    iter %2d  %s disagree with the free law (|R|/F = %.3e)", k, held, rel)
     ctx_k = watch.settle(ctx, ev.states,
                          f"{held} disagree with the free law at convergence (|R|/F = {rel:.3e} "

@@ -72,6 +72,7 @@ class FactorReuse:
         self.min_dofs = int(min_dofs)
         self.factorisations = 0
         self.back_substitutions = 0
+        self.solves = 0               # linear solves, by either way
         self.reused = 0               # solves done with an older factor
         self._key = None              # the free-DOF set (object) the factor in hand belongs to
 
@@ -84,6 +85,7 @@ class FactorReuse:
         by GMRES on the factor in hand when it reaches ``|rhs - A x| <= max(RTOL |rhs|, atol)``
         within ``krylov`` steps, else by a new factorisation (SingularMatrixError from the
         solver as usual)."""
+        self.solves += 1
         if (self.krylov > 0 and self._key is free and A.shape[0] == free.nfree
                 and A.shape[0] >= self.min_dofs):
             x, steps = gmres_right(A, self._back_substitute, rhs, RTOL, self.krylov, atol)

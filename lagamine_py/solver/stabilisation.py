@@ -16,9 +16,18 @@ from ..core.errors import ContactNotSettled
 from ..core.status import SLIP, STICK
 from .newton import IterationObserver
 
-__all__ = ["FlipFlop", "SLIP_NEG"]
+__all__ = ["FlipFlop", "SLIP_NEG", "state_codes"]
 
 SLIP_NEG = 3                 # state code of a point slipping with tau < 0
+
+
+def state_codes(status, tau, p) -> np.ndarray:
+    """(g,) int8 state of each contact point: its status, or :data:`SLIP_NEG` for a point
+    slipping with tau < 0.  A slip direction only where tau is not round-off (frictionless
+    contact has tau ~ 1e-12 p of either sign: no reversal there)."""
+    status = np.asarray(status).ravel()
+    tau, p = np.asarray(tau).ravel(), np.asarray(p).ravel()
+    return np.where((status == SLIP) & (tau < -1e-9 * np.abs(p)), SLIP_NEG, status).astype(np.int8)
 
 
 class FlipFlop(IterationObserver):
@@ -63,12 +72,7 @@ class FlipFlop(IterationObserver):
         or :data:`SLIP_NEG` for a point slipping with tau < 0."""
         for k in self.watched:
             st = states[k]
-            status = np.asarray(st["status"]).ravel()
-            tau, p = np.asarray(st["tau"]).ravel(), np.asarray(st["p"]).ravel()
-            # a slip direction only where tau is not round-off (frictionless contact has
-            # tau ~ 1e-12 p of either sign: no reversal to freeze there)
-            code = np.where((status == SLIP) & (tau < -1e-9 * np.abs(p)), SLIP_NEG, status)
-            yield k, status, code.astype(np.int8)
+            yield k, np.asarray(st["status"]).ravel(), state_codes(st["status"], st["tau"], st["p"])
 
     def context(self, ctx, states):
         """Update the counts with the states of the last evaluation; the context of the next."""

@@ -53,13 +53,16 @@ from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, driving_loads, step_loads
 from .newton import FLOOR_FRACTION, Settings, solve_increment
 from .reuse import FactorReuse
-from .predictor import first_iterate
+from .predictor import FrontPredictor, first_iterate, front_holds
 from .problem import (CONTACT, SOLID, Problem, alternation_advice, build_problem,
                       dload_surfaces, faces_in_contact, penalty_advice)
-from .stabilisation import FlipFlop
+from .stabilisation import FlipFlop, state_codes
 from .stepper import StepExhausted, Stepper
 
 log = logging.getLogger("lagamine_py.solver")
+
+#: what the restart data keeps of the slip fronts of the last increment, per contact group
+FRONT_ARRAYS = ("x0", "before", "after", "tau")
 
 
 @dataclass
@@ -334,14 +337,14 @@ class Controller:
         controls, settings, solver = self._setup_step(si, step)
         self.states = self.problem.set_step_laws(si, self.states)   # *CHANGE CONTACT LAW
         if resume is not None:
-            loads, last = resume["loads"], resume["last"]
+            loads, last, front = resume["loads"], resume["last"], resume["front"]
             stepper = Stepper.start(step, controls, resume["t"], resume["dt"], resume["inc"])
         else:
             loads = step_loads(self.model, step, self.reached, self.u, self.reaction,
                                self.surfaces, self.foundations)
             # the last converged increment of the step (displacement change, dt): the
             # predictor of the next one (EXTRAPOLATION=LINEAR); none at a step start
-            last = None
+            last = front = None        # and how its slip fronts moved (front_holds)
             stepper = Stepper.start(step, controls)
         free = FreeDofs(self.problem.pattern, loads.constrained)
         self._start_step(si, step, loads, controls)
@@ -349,13 +352,16 @@ class Controller:
             if self.problem.refresh(self.u):      # two-body contact re-paired: a new pattern
                 free = FreeDofs(self.problem.pattern, loads.constrained)
             conv = self._increment(si, step, loads, free, solver, settings, controls, stepper,
-                                   last)
+                                   last, front)
             last = (conv.u - self.u, stepper.attempt)
+            before = self._contact_states()
             self._commit(conv, loads, free)
             t = stepper.accept(conv.iterations)
             self._hand_out(si, step, loads, stepper.inc, t, stepper.attempt, conv,
                            stepper.cutbacks, stepper.period, stepper.finished)
-            self._save_restart(si, loads, stepper, last)
+            front = [(cp.x0, b, a, np.asarray(cp.tau, float)) for cp, b, a in
+                     zip(self.last_contacts, before, self._contact_states())]
+            self._save_restart(si, loads, stepper, last, front)
         self._log_step_energy(si)
         self._contact_advice(si)
         self.reached = loads.reached(self.model)
@@ -416,7 +422,8 @@ class Controller:
         for w in self.writers.values():
             w.start_step(si + 1, step)
 
-    def _increment(self, si, step, loads, free, solver, settings, controls, stepper, last):
+    def _increment(self, si, step, loads, free, solver, settings, controls, stepper, last,
+                   front=None):
         """One converged increment: attempts from :meth:`Stepper.trial`, cut back on every
         typed failure until one converges; StepFailed when the stepper runs out."""
         where = lambda: (f"at step time {stepper.t:g} of {stepper.period:g} "    # noqa: E731
@@ -427,7 +434,9 @@ class Controller:
             raise StepFailed(f"step {si + 1} ({step.name}): {exc} {where()}") from None
         while True:
             try:
-                return self._attempt(step, loads, free, solver, settings, controls, stepper, last)
+                # a cut-back attempt predicts no front: the prediction may be what failed
+                return self._attempt(step, loads, free, solver, settings, controls, stepper, last,
+                                     front if stepper.cutbacks == 0 else None)
             except (ConvergenceFailure, SingularMatrixError) as exc:
                 reason = self._failure_text(exc, free)
                 if isinstance(exc, SingularMatrixError) and not self.has_contact:
@@ -452,7 +461,26 @@ class Controller:
             log.info("solid elements computed by %s", text)
             self._kernel_text = text
 
-    def _attempt(self, step, loads: StepLoads, free, solver, settings, controls, stepper, last):
+    def _contact_states(self) -> list[np.ndarray]:
+        """(g,) state codes (:func:`~.stabilisation.state_codes`) of every contact group's
+        committed state, in group order."""
+        return [state_codes(self.states[k]["status"], self.states[k]["tau"], self.states[k]["p"])
+                for k in self.problem.indices(CONTACT)]
+
+    def _front_predictor(self, front, last, dt, controls) -> FrontPredictor:
+        """The slip points predicted for the next increment from the fronts' motion over the
+        last one (``front``: per contact group (x0, statuses before, after); none at a step
+        start or with EXTRAPOLATION=NONE, as the displacement predictor)."""
+        holds = {}
+        if front is not None and last is not None and controls["EXTRAPOLATION"] == "LINEAR":
+            for k, (x0, before, after, tau) in zip(self.problem.indices(CONTACT), front):
+                if before.shape == after.shape == tau.shape == (len(x0),):
+                    holds[self.problem.group_names[k]] = front_holds(x0, before, after, tau,
+                                                                     dt / last[1])
+        return FrontPredictor(holds)
+
+    def _attempt(self, step, loads: StepLoads, free, solver, settings, controls, stepper, last,
+                 front=None):
         """One Newton solve of the increment ``stepper.attempt`` from the step time reached."""
         model, problem = self.model, self.problem
         t, dt = stepper.t, stepper.attempt
@@ -474,6 +502,9 @@ class Controller:
         # the increment is cut back), not a warning on the terminal
         contact = problem.indices(CONTACT)
         states, solves, iterations, ratio = self.states, 0, 0, 0.0
+        # one predictor for the increment: the fronts are held at the first evaluation of its
+        # first solve only, not again from the converged solve an augmentation starts from
+        fronts = self._front_predictor(front, last, dt, controls)
         factorisations = back_substitutions = 0
         while True:
             try:
@@ -481,7 +512,7 @@ class Controller:
                     trial = solve_increment(
                         problem, solver, free, self.u, states, ctx, u_c, f_ext, settings,
                         floor=FLOOR_FRACTION * self.force_ref, u_start=start, predicted=predicted,
-                        observers=(FlipFlop(watched, int(controls["FLIPFLOP"])),),
+                        observers=(fronts, FlipFlop(watched, int(controls["FLIPFLOP"]))),
                         solves=self._solves)
             except ConvergenceFailure as exc:
                 if solves == 0:
@@ -627,17 +658,20 @@ class Controller:
 
     def _report_failure(self, si, step, inc, t, dt, cutbacks, exc, reason) -> None:
         history = exc.history if isinstance(exc, ConvergenceFailure) else []
+        solves = exc.solves if isinstance(exc, ConvergenceFailure) else None
         log.warning("  step %d increment %d: attempt with dt %g failed (%s); cutting back",
                     si + 1, inc + 1, dt, reason)
         attempt = FailedAttempt(step=si + 1, step_name=step.name, increment=inc + 1,
                                 time=self.time_offset + t, step_time=t, dt=dt, reason=exc.reason,
-                                message=reason, iterations=max(len(history) - 1, 0),
+                                message=reason,
+                                iterations=max(len(history) - 1, 0) if solves is None else solves,
                                 residual_history=list(history), cutbacks=cutbacks)
         for w in self.active:
             w.failed_attempt(attempt)
 
     # -- restart ---------------------------------------------------------------------------
-    def _save_restart(self, si, loads: StepLoads, stepper: Stepper, last=None) -> None:
+    def _save_restart(self, si, loads: StepLoads, stepper: Stepper, last=None,
+                      front=None) -> None:
         state = stepper.state()
         data = {"deck": np.array(self.deck.path), "deck_digest": np.array(self.deck.digest),
                 "deck_parameters": np.array(json.dumps(self.deck.parameters)),
@@ -650,6 +684,9 @@ class Controller:
                 "u": self.u, "reaction": self.reaction}
         if last is not None:            # the predictor of the next increment, for a same-path resume
             data["last_du"], data["last_dt"] = last[0], np.array(last[1])
+        for i, arrays in enumerate(front or ()):      # and its slip fronts
+            for name, v in zip(FRONT_ARRAYS, arrays):
+                data[f"front_{name}_{i}"] = v
         data.update(rs.pack_states(self.states))
         data.update(loads.to_arrays())
         if self.energy is not None:
@@ -686,8 +723,10 @@ class Controller:
             self.time_offset += loads.period
             return {"step": si + 1, "loads": None}
         last = (data["last_du"].copy(), float(data["last_dt"])) if "last_du" in data else None
+        front = [tuple(data[f"front_{name}_{i}"].copy() for name in FRONT_ARRAYS)
+                 for i in range(len(self.problem.indices(CONTACT))) if f"front_x0_{i}" in data]
         return {"step": si, "loads": loads, "t": t, "dt": float(data["dt"]),
-                "inc": int(data["inc"]), "last": last}
+                "inc": int(data["inc"]), "last": last, "front": front or None}
 
 
 def tracks_energy(model) -> bool:
