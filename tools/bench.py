@@ -116,6 +116,20 @@ class Timers:
         setattr(obj, name, timed)
 
 
+def _wrap_compute(timers: Timers, group, label: str) -> None:
+    """Time ``group.compute`` under ``label``, and the tangent it defers (``GroupResult.later``,
+    computed when Newton reads the evaluation's data) under the same label."""
+    fn = group.compute
+
+    def timed(*a, **k):
+        r = timers.call(label, fn, *a, **k)
+        if r.later is not None:
+            deferred = r.later
+            r.later = lambda: timers.call(label, deferred)
+        return r
+    group.compute = timed
+
+
 class _Stop(Exception):
     """Raised by the instrumented writer after ``max_increments`` increments."""
 
@@ -138,6 +152,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     from lagamine_py.solver import problem as problem_mod
     from lagamine_py.solver import steps as steps_mod
     from lagamine_py.solver.linear import FreeDofs
+    from lagamine_py.elements.base import LATER
 
     timers = Timers()
     work = Path(keep) if keep else Path(tempfile.mkdtemp(prefix=f"bench_{nx}x{ny}_"))
@@ -159,9 +174,21 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
 
     labels = {"solid": "bulk", "contact": "contact", "pressure": "pressure"}
     for g, kind in zip(problem.groups, problem.kinds):
-        timers.wrap(g, "compute", labels[kind])
+        _wrap_compute(timers, g, labels[kind])
         if hasattr(g, "compute_into"):          # the fused numba kernel: compute + scatter
             timers.wrap(g, "compute_into", labels[kind])
+    # evaluations Newton asked with tangent=LATER, and those whose tangent was then read
+    later_counts = {"later_evaluations": 0, "later_tangents": 0}
+    orig_evaluate, orig_later_data = problem.evaluate, problem._later_data
+
+    def evaluate(*a, **k):
+        later_counts["later_evaluations"] += (a[4] if len(a) > 4 else k.get("tangent")) is LATER
+        return orig_evaluate(*a, **k)
+
+    def later_data(*a, **k):
+        later_counts["later_tangents"] += 1
+        return orig_later_data(*a, **k)
+    problem.evaluate, problem._later_data = evaluate, later_data
     timers.wrap(problem.pattern, "assemble_data", "scatter")
     timers.wrap(problem.pattern, "group_vector", "scatter")
     orig_kff = FreeDofs.kff
@@ -286,7 +313,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         "nnz": int(problem.pattern.nnz), "contact_elements": ncontact_gp,
         "status": status, "message": message,
         "increments": timers.n["vtk"], "iterations": iters,
-        "bulk_evaluations": timers.n["bulk"],
+        "bulk_evaluations": timers.n["bulk"], **later_counts,
         "solver": solver, "kernel": kernel, "numba_from": kernels.AUTO_NUMBA_ELEMENTS,
         "fused_groups": int(sum(g.fused for g in problem.groups)),
         "solver_used": sorted(used), "pardiso_analyses": int(sum(analyses.values())),
