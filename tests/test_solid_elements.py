@@ -176,6 +176,27 @@ def test_log_derivative_at_equal_eigenvalues():
     assert np.allclose(E, 0.5 * np.array([logm(x) for x in b]).real, atol=1e-14)
 
 
+def test_log_stretch_is_ln_v():
+    """The output's ``ln V`` without eigenvectors (:func:`log_stretch`) against its closed form
+    ``F = R diag(s) Q``: ``ln V = R diag(ln s) R^T`` (stretches from 1 +- 1e-9 to 3 and 0.3,
+    equal stretches, rotations R and Q) and against scipy's ``logm`` of ``F F^T``."""
+    from lagamine_py.elements.solid import log_stretch
+    from scipy.linalg import logm
+    rng = np.random.default_rng(4)
+    s = np.array([[1.0, 1.0], [1 + 1e-9, 1.0], [1 + 8e-7, 1.0], [1.001, 0.999], [1.1, 0.95], [3.0, 0.3],
+                  [0.5, 0.5], [2.0, 1.0 + 1e-7]])
+    ar, aq = rng.uniform(-np.pi, np.pi, (2, len(s)))
+    R, Q = np.array([rotation(a) for a in ar]), np.array([rotation(a) for a in aq])
+    F = R @ (s[:, :, None] * Q)
+    lnV = R @ (np.log(s)[:, :, None] * np.swapaxes(R, 1, 2))
+    E11, E22, E12 = log_stretch(F)
+    got = np.stack([E11, E22, E12], -1)
+    assert np.allclose(got, lnV[:, [0, 1, 0], [0, 1, 1]], rtol=0, atol=1e-15 * 4)
+    for Fk, gk in zip(F, got):
+        ref = 0.5 * logm(Fk @ Fk.T).real
+        assert np.allclose(gk, ref[[0, 1, 0], [0, 1, 1]], rtol=0, atol=1e-13)
+
+
 # --------------------------------------------------------------------------------------------
 # objectivity
 

@@ -119,6 +119,20 @@ class Timers:
         setattr(obj, name, timed)
 
 
+def _wrap_compute(timers: Timers, group, label: str) -> None:
+    """Time ``group.compute`` under ``label``, and the tangent it defers (``GroupResult.later``,
+    computed when Newton reads the evaluation's data) under the same label."""
+    fn = group.compute
+
+    def timed(*a, **k):
+        r = timers.call(label, fn, *a, **k)
+        if r.later is not None:
+            deferred = r.later
+            r.later = lambda: timers.call(label, deferred)
+        return r
+    group.compute = timed
+
+
 class _Stop(Exception):
     """Raised by the instrumented writer after ``max_increments`` increments."""
 
@@ -141,6 +155,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     from lagamine_py.solver import problem as problem_mod
     from lagamine_py.solver import steps as steps_mod
     from lagamine_py.solver.linear import FreeDofs
+    from lagamine_py.elements.base import LATER
 
     timers = Timers()
     work = Path(keep) if keep else Path(tempfile.mkdtemp(prefix=f"bench_{nx}x{ny}_"))
@@ -162,9 +177,21 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
 
     labels = {"solid": "bulk", "contact": "contact", "pressure": "pressure"}
     for g, kind in zip(problem.groups, problem.kinds):
-        timers.wrap(g, "compute", labels[kind])
+        _wrap_compute(timers, g, labels[kind])
         if hasattr(g, "compute_into"):          # the fused numba kernel: compute + scatter
             timers.wrap(g, "compute_into", labels[kind])
+    # evaluations Newton asked with tangent=LATER, and those whose tangent was then read
+    later_counts = {"later_evaluations": 0, "later_tangents": 0}
+    orig_evaluate, orig_later_data = problem.evaluate, problem._later_data
+
+    def evaluate(*a, **k):
+        later_counts["later_evaluations"] += (a[4] if len(a) > 4 else k.get("tangent")) is LATER
+        return orig_evaluate(*a, **k)
+
+    def later_data(*a, **k):
+        later_counts["later_tangents"] += 1
+        return orig_later_data(*a, **k)
+    problem.evaluate, problem._later_data = evaluate, later_data
     timers.wrap(problem.pattern, "assemble_data", "scatter")
     timers.wrap(problem.pattern, "group_vector", "scatter")
     orig_kff = FreeDofs.kff
@@ -224,6 +251,16 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     def save_restart(self, *a, **k):
         timers.call("restart", orig_save, self, *a, **k)
     steps_mod.Controller._save_restart = save_restart
+    # what the writers are handed, built by the controller once per increment: the solid
+    # groups' cell blocks (stresses, strains: NLGEOM ln V) and the contact points
+    orig_cells, orig_contacts = steps_mod.Controller._cells, steps_mod.Controller._contacts
+
+    def cells(self, *a, **k):
+        return timers.call("output_data", orig_cells, self, *a, **k)
+
+    def contacts(self, *a, **k):
+        return timers.call("output_data", orig_contacts, self, *a, **k)
+    steps_mod.Controller._cells, steps_mod.Controller._contacts = cells, contacts
 
     writers = default_writers(work / "out", model)
     for w in writers:
@@ -272,6 +309,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     linear_mod.PardisoSolver._pardiso = orig_pardiso
     linear_mod.PardisoSolver.is_symmetric = orig_symmetric
     steps_mod.Controller._save_restart = orig_save
+    steps_mod.Controller._cells, steps_mod.Controller._contacts = orig_cells, orig_contacts
 
     if not keep:
         shutil.rmtree(work, ignore_errors=True)
@@ -289,7 +327,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         "nnz": int(problem.pattern.nnz), "contact_elements": ncontact_gp,
         "status": status, "message": message,
         "increments": timers.n["vtk"], "iterations": iters,
-        "bulk_evaluations": timers.n["bulk"],
+        "bulk_evaluations": timers.n["bulk"], **later_counts,
         "solver": solver, "kernel": kernel, "numba_from": kernels.AUTO_NUMBA_ELEMENTS,
         "fused_groups": int(sum(g.fused for g in problem.groups)),
         "solver_used": sorted(used), "pardiso_analyses": int(sum(analyses.values())),
@@ -750,7 +788,7 @@ def bench_first_run(nx: int = 80, ny: int = 40) -> dict:
 # report
 
 COLUMNS = ("bulk", "contact", "pressure", "scatter", "reduce", "factor", "solve", "vtk",
-           "other_output", "restart", "harness", "controller")
+           "other_output", "output_data", "restart", "harness", "controller")
 
 
 #: PARDISO's own phases (timed inside factor and solve by ``run_one``)
@@ -799,7 +837,7 @@ def report(results: list[dict], png: Path | None, basis: str = "cpu") -> str:
         per = _per_it(r, basis)
         total = _run_cost(per)
         fac = per["factor"]
-        out = per["vtk"] + per["other_output"]
+        out = per["vtk"] + per["other_output"] + per["output_data"]
         ratio = (total - fac) / fac if fac else float("nan")
         load = r.get("load_average")
         lines.append(
@@ -828,7 +866,7 @@ def _plot(results, png: Path, basis: str = "cpu") -> None:
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     groups = {"total": COLUMNS, "bulk assembly + scatter": ("bulk", "scatter"),
               "contact": ("contact",), "factorisation": ("factor",), "solve": ("solve",),
-              "output (VTK, tables)": ("vtk", "other_output")}
+              "output (VTK, tables)": ("vtk", "other_output", "output_data")}
     for label, cols in groups.items():
         y = np.array([sum(_per_it(r, basis)[c] for c in cols) for r in results])
         ax.loglog(dofs, 1e3 * y, "o-", label=label)

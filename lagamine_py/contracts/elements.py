@@ -19,7 +19,7 @@ from .findings import ContractFailure, Finding, Skip, Suite, all_within, require
 
 ELEMENT_ITEMS = ("shape functions", "shape derivatives", "gauss rule", "faces", "outline",
                  "jacobian check", "recovery", "vtk cell", "patch test", "rigid motion",
-                 "tangent (small strain)", "tangent (NLGEOM)")
+                 "tangent (small strain)", "tangent (NLGEOM)", "tangent later")
 
 _E, _NU = 200e3, 0.3                 # the elastic and elasto-plastic laws the element checks use
 _SIGMAY, _H = 300.0, 2000.0
@@ -499,6 +499,36 @@ def _tangent(cls, nlgeom: bool) -> str:
     return all_within(measures)
 
 
+def _tangent_later(cls) -> str:
+    """An element declaring ``defers_tangent``: ``compute(..., tangent=LATER)`` gives the forces
+    and state of ``tangent=True`` and a ``later()`` returning its ``K``, bit for bit (a subclass
+    that changes ``K`` after ``compute`` must do it in ``later`` too, or not defer)."""
+    from ..elements.base import LATER, StepContext
+    if not cls.defers_tangent:
+        raise Skip("the element does not defer its tangent (defers_tangent = False)")
+    coords = _one_element(cls, 5)
+    done = []
+    for nlgeom in (False, True):
+        ctx = StepContext(nlgeom=nlgeom)
+        g = cls(np.array([7]), np.arange(cls.nen)[None], coords, _plastic_law(), 1.0)
+        centred = coords - coords.mean(axis=0)
+        u = centred @ np.array([[4e-3, 1e-3], [-2e-3, -5e-3]]).T
+        now = _compute(g, u, 0 * u, g.init_state(), ctx, True)
+        later = _compute(g, u, 0 * u, g.init_state(), ctx, LATER)
+        if later.K is None and later.later is None:
+            raise ContractFailure("compute(tangent=LATER) returned neither K nor later")
+        K = later.K if later.K is not None else later.later()
+        same = (np.array_equal(now.f, later.f) and np.array_equal(now.K, K)
+                and now.state.keys() == later.state.keys()
+                and all(np.array_equal(now.state[k], later.state[k]) for k in now.state))
+        kind = "NLGEOM" if nlgeom else "small strain"
+        if not same:
+            raise ContractFailure(f"{kind}: compute(tangent=LATER) differs from tangent=True "
+                                  f"(max |K diff| {float(np.abs(now.K - K).max()):.3g})")
+        done.append(kind)
+    return f"f, state and K of tangent=LATER equal to tangent=True, bit for bit ({', '.join(done)})"
+
+
 def check_element(cls) -> list[Finding]:
     """The element contract (:class:`~lagamine_py.elements.base.Element`) on class ``cls``."""
     s = Suite(ELEMENT_ITEMS)
@@ -508,4 +538,5 @@ def check_element(cls) -> list[Finding]:
         s.run(name, fn, cls)
     s.run("tangent (small strain)", _tangent, cls, False)
     s.run("tangent (NLGEOM)", _tangent, cls, True)
+    s.run("tangent later", _tangent_later, cls)
     return s.findings

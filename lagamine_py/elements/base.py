@@ -18,6 +18,8 @@ looks at a node count: the deck builder, the writers and the plots ask the eleme
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
+
 import numpy as np
 
 from ..core.plugin import Plugin
@@ -25,7 +27,7 @@ from ..core.tensors import det2
 from . import bernstein
 
 __all__ = ["StepContext", "GroupResult", "Group", "Element", "CellBlock", "ContactPoints",
-           "JacobianCheck"]
+           "JacobianCheck", "LATER"]
 
 _CHUNK = 4096          # elements (or sub-domains) per vectorised chunk: bounded temporaries
 _MAX_OPEN = 250_000    # sub-domains left open beyond this stop the subdivision (refused as undecided)
@@ -46,16 +48,36 @@ class StepContext:
     stabilisation: dict[str, tuple[float, float, float]] | None = None
 
 
+class _Later:
+    """The type of :data:`LATER` (truthy: a group that does not defer computes its tangent)."""
+
+    def __bool__(self) -> bool:
+        return True
+
+    def __repr__(self) -> str:
+        return "LATER"
+
+
+#: ``compute(..., tangent=LATER)`` of a group whose :attr:`Group.defers_tangent` is True: the
+#: forces and the trial state now, the tangent only if the solver asks for it, computed then
+#: from what the group kept (:attr:`GroupResult.later`).  The evaluation at which Newton
+#: converges needs no tangent (:meth:`lagamine_py.solver.problem.Problem.evaluate`).
+LATER = _Later()
+
+
 @dataclass
 class GroupResult:
     """``f`` (e, nd) and ``K`` (e, nd, nd) (None when not asked, or when a fused kernel added it
     into the global data); ``state`` the trial state (committed by the solver only when the
     increment converges); ``failure`` a message when the group could not compute (negative
-    Jacobian, return mapping failed): the step controller then cuts back."""
+    Jacobian, return mapping failed): the step controller then cuts back.  ``later``: with
+    ``tangent=LATER``, a function returning ``K`` (e, nd, nd) -- bit for bit the ``K`` of
+    ``tangent=True`` -- from what the group kept, instead of ``K`` now."""
     f: np.ndarray
     K: np.ndarray | None
     state: dict[str, np.ndarray]
     failure: str | None = None
+    later: Callable[[], np.ndarray] | None = None
 
 
 @dataclass
@@ -144,6 +166,10 @@ class Group:
     #: True when the solver calls :meth:`compute_into` (a fused kernel computing and scattering)
     #: instead of :meth:`compute`; set by :meth:`use_kernels`
     fused: bool = False
+    #: True when :meth:`compute` accepts ``tangent=LATER`` (forces and state now, the tangent
+    #: from :attr:`GroupResult.later` when asked: what the group keeps for it costs less than
+    #: computing it again).  Other groups are asked ``tangent=True`` in such an evaluation.
+    defers_tangent: bool = False
 
     def init_state(self) -> dict[str, np.ndarray]:
         return {}
@@ -151,7 +177,8 @@ class Group:
     def compute(self, u_new: np.ndarray, u_old: np.ndarray, state: dict[str, np.ndarray],
                 ctx: StepContext, tangent: bool = True) -> GroupResult:
         """``u_new``/``u_old``: global nodal displacements (n, 2) at the end / start of the
-        increment.  ``state``: committed state at the start of the increment (not modified)."""
+        increment.  ``state``: committed state at the start of the increment (not modified).
+        ``tangent``: True, False, or :data:`LATER` when :attr:`defers_tangent`."""
         raise NotImplementedError
 
     def use_kernels(self, on: bool) -> None:

@@ -26,9 +26,9 @@ import numpy as np
 
 from .. import kernels
 from ..core.tensors import det2 as _det2, inv2 as _inv2
-from .base import Element, GroupResult, StepContext
+from .base import LATER, Element, GroupResult, StepContext
 
-__all__ = ["SolidElement", "sym_eig2", "hencky_to_b", "log_b"]
+__all__ = ["SolidElement", "sym_eig2", "hencky_to_b", "log_b", "log_stretch"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -83,14 +83,26 @@ def log_b(b2: np.ndarray, derivative: bool = False):
     ``1/2 (g_00 P_0 x P_0 + g_11 P_1 x P_1 + g_01 S x S / 2)``: three outer products instead
     of a five-operand contraction.
     """
+    E, parts = _log_b_value(b2)
+    if not derivative:
+        return E
+    return E, _log_b_derivative(*parts)
+
+
+def _log_b_value(b2: np.ndarray):
+    """``1/2 ln b`` (..., 2, 2) of :func:`log_b` and the spectral parts its derivative is made of
+    (:func:`_log_b_derivative`), so that it can be taken later from the same numbers."""
     lam, V = sym_eig2(b2)
     v0, v1 = V[..., :, 0], V[..., :, 1]
     P0 = v0[..., :, None] * v0[..., None, :]
     P1 = v1[..., :, None] * v1[..., None, :]
     half_log = 0.5 * np.log(lam)
     E = half_log[..., 0, None, None] * P0 + half_log[..., 1, None, None] * P1
-    if not derivative:
-        return E
+    return E, (lam, v0, v1, P0, P1)
+
+
+def _log_b_derivative(lam, v0, v1, P0, P1):
+    """``C`` (..., 2, 2, 2, 2) of :func:`log_b` from the parts of :func:`_log_b_value`."""
     m = 0.5 * (lam[..., 0] + lam[..., 1])
     x = 0.5 * (lam[..., 0] - lam[..., 1]) / m
     small = x < 1e-6
@@ -98,9 +110,27 @@ def log_b(b2: np.ndarray, derivative: bool = False):
     ratio = np.where(small, 1.0 + x * x / 3.0, np.arctanh(np.minimum(xs, 1 - 1e-16)) / xs)
     S = v0[..., :, None] * v1[..., None, :]
     S = S + np.swapaxes(S, -1, -2)
-    C = _outer22(P0, 0.5 / lam[..., 0]) + _outer22(P1, 0.5 / lam[..., 1]) \
+    return _outer22(P0, 0.5 / lam[..., 0]) + _outer22(P1, 0.5 / lam[..., 1]) \
         + _outer22(S, 0.25 * ratio / m)
-    return E, C
+
+
+def log_stretch(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Components ``(E11, E22, E12)`` of the logarithmic strain ``ln V = 1/2 ln(F F^T)`` of
+    in-plane deformation gradients F (..., 2, 2) with det F > 0, element-wise and without an
+    eigenvector: for a symmetric ``C`` with mean eigenvalue ``m`` and half-spread ``rho``,
+    ``ln C = 1/2 ln(det C) I + atanh(x) / (x m) (C - m I)`` (``x = rho / m``, the function
+    :func:`log_b` builds from the spectrum; its limit 1/m covers equal eigenvalues), and
+    ``1/2 ln det C = ln det F``.  What the output's strains use (the element's own trial strain
+    keeps :func:`log_b`): about 4x cheaper, and no round-off of a rotation to the eigenaxes."""
+    F00, F01, F10, F11 = F[..., 0, 0], F[..., 0, 1], F[..., 1, 0], F[..., 1, 1]
+    a, b, c = F00 * F00 + F01 * F01, F10 * F10 + F11 * F11, F00 * F10 + F01 * F11
+    m, h = 0.5 * (a + b), 0.5 * (a - b)
+    x = np.hypot(h, c) / m
+    small = x < 1e-6
+    xs = np.where(small, 1.0, x)
+    beta = 0.5 * np.where(small, 1.0 + x * x / 3.0, np.arctanh(np.minimum(xs, 1 - 1e-16)) / xs) / m
+    half_log_det = 0.5 * np.log(F00 * F11 - F01 * F10)
+    return half_log_det + beta * h, half_log_det - beta * h, beta * c
 
 
 def _outer22(A: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -126,6 +156,10 @@ class SolidElement(Element):
     law : MaterialLaw.
     thickness : plane-strain thickness (ignored in axisymmetry: integrals are per radian).
     """
+
+    #: ``compute(..., tangent=LATER)``: the tangent's inputs are kept, the tangent computed from
+    #: them when the solver asks (the same operations on the same numbers as ``tangent=True``)
+    defers_tangent = True
 
     # -- construction -------------------------------------------------------------------------
     def __init__(self, ids, conn, coords0, law, thickness: float = 1.0):
@@ -215,8 +249,8 @@ class SolidElement(Element):
         ue = np.asarray(u, float)[self.conn]                              # (e, a, 2)
         if nlgeom:
             F, F33, _ = self._deformation(ue)
-            E2 = log_b(F @ np.swapaxes(F, -1, -2))
-            return np.stack([E2[..., 0, 0], E2[..., 1, 1], np.log(F33), 2.0 * E2[..., 0, 1]], -1)
+            E11, E22, E12 = log_stretch(F)
+            return np.stack([E11, E22, np.log(F33), 2.0 * E12], -1)
         H = np.einsum("eai,eqaj->eqij", ue, self.dNdX)                    # du_i / dX_j
         hoop = (np.einsum("qa,ea->eq", self.N, ue[..., 0]) / self.R0 if self.axisymmetric
                 else np.zeros(H.shape[:2]))
@@ -292,7 +326,9 @@ class SolidElement(Element):
     def _compute_chunked(self, u_new, u_old, state, ctx, tangent):
         ne, nd = self.dofs.shape
         f = np.empty((ne, nd))
-        K = np.empty((ne, nd, nd)) if tangent else None
+        now = bool(tangent) and tangent is not LATER
+        K = np.empty((ne, nd, nd)) if now else None
+        laters = []
         new_state: dict[str, np.ndarray] = {}
         failed: dict[str, np.ndarray] = {}
         for sl, view in self._chunk_views():
@@ -305,8 +341,10 @@ class SolidElement(Element):
             if failed:
                 continue
             f[sl] = r.f
-            if tangent:
+            if now:
                 K[sl] = r.K
+            elif tangent:
+                laters.append((sl, r.later))
             for k, v in r.state.items():
                 if k not in new_state:
                     new_state[k] = np.empty((ne,) + v.shape[1:], v.dtype)
@@ -314,7 +352,7 @@ class SolidElement(Element):
         if failed:     # the first check that fails anywhere, as in one block
             what = next(w for w in self._FAILURE_ORDER if w in failed)
             return self._failure(failed[what], what, state, tangent)
-        return GroupResult(f, K, new_state)
+        return GroupResult(f, K, new_state, later=_joined(laters, (ne, nd, nd)) if laters else None)
 
     _FAILURE_ORDER = ("non-positive det F", "return mapping failed")
 
@@ -338,6 +376,11 @@ class SolidElement(Element):
         if isinstance(new_state, GroupResult):
             return new_state
         f = _weighted_force(B, sig, self.w0)
+        if tangent is LATER:             # B again from the same numbers: nothing (e, q, 4, d) kept
+            def later():
+                B = self._operator(self.dNdX, self.R0)
+                return _weighted_product(B, D, B, self.w0)
+            return GroupResult(f, None, new_state, later=later)
         K = _weighted_product(B, D, B, self.w0) if tangent else None
         return GroupResult(f, K, new_state)
 
@@ -381,7 +424,6 @@ class SolidElement(Element):
         return old
 
     def _large_strain(self, ue_new, ue_old, state, law_state, tangent):
-        ne, nq, na = len(self.conn), self.nq, self.nen
         F, F33, r = self._deformation(ue_new)
         F_old_inv, F33_old, bad_old, bn2, bn33 = self._start_of_increment(ue_old,
                                                                           law_state["eps_e"])
@@ -396,10 +438,7 @@ class SolidElement(Element):
         f33 = F33 / F33_old
         b2 = f2 @ bn2 @ np.swapaxes(f2, -1, -2)
         b33 = f33**2 * bn33
-        if tangent:
-            E2, C = log_b(b2, derivative=True)
-        else:
-            E2 = log_b(b2)
+        E2, log_parts = _log_b_value(b2)
         trial = np.stack([E2[..., 0, 0], E2[..., 1, 1], 0.5 * np.log(b33), 2 * E2[..., 0, 1]], -1)
 
         tau, D, new_law_state, ok = self.law.update(trial, law_state)
@@ -413,6 +452,18 @@ class SolidElement(Element):
         f = _weighted_force(G, tau, self.w0)
         if not tangent:
             return GroupResult(f, None, new_state)
+        if tangent is LATER:             # G again from dNdx and r: nothing (e, q, 4, d) kept
+            return GroupResult(f, None, new_state, later=lambda: self._nlgeom_tangent(
+                log_parts, b2, dNdx, r, None, D, tau))
+        return GroupResult(f, self._nlgeom_tangent(log_parts, b2, dNdx, r, G, D, tau), new_state)
+
+    def _nlgeom_tangent(self, log_parts, b2, dNdx, r, G, D, tau):
+        """The NLGEOM tangent (e, 2 nen, 2 nen) at the point :meth:`_large_strain` computed
+        (``G`` None: formed again from ``dNdx`` and ``r``)."""
+        ne, nq, na = len(dNdx), self.nq, self.nen
+        if G is None:
+            G = self._operator(dNdx, r)
+        C = _log_b_derivative(*log_parts)
 
         # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du, i.e.
         # dE_ij / du_bk = 2 sum_n C_ijkn h_bn (C symmetric in kn): one (b, n) @ (n, k) product
@@ -439,7 +490,7 @@ class SolidElement(Element):
             Kg[:, :, 0, :, 0] -= np.einsum("eq,qa,qb->eab", self.w0 * tau[..., 2] / r**2,
                                            self.N, self.N)
         K += Kg.reshape(ne, 2 * na, 2 * na)
-        return GroupResult(f, K, new_state)
+        return K
 
 
     # -- optional fused kernel (numba): compute + scatter, no (e, nd, nd) array -----------------
@@ -537,6 +588,16 @@ def _kernel_array(a, shape) -> np.ndarray:
     if not (a.flags.c_contiguous and a.flags.writeable):
         return np.array(a, order="C")
     return a
+
+
+def _joined(laters, shape):
+    """One ``later`` of the chunks' ``(slice, later)``: their tangents in one (e, nd, nd) array."""
+    def later():
+        K = np.empty(shape)
+        for sl, fn in laters:
+            K[sl] = fn()
+        return K
+    return later
 
 
 def _weighted_force(B, s, w):

@@ -47,6 +47,7 @@ import numpy as np
 
 from ..core.errors import (ConvergenceFailure, DivergingResidual, IterationLimit,  # noqa: F401
                            NotANumber, SingularMatrixError)
+from ..elements.base import LATER
 from .reuse import FactorReuse, forcing
 
 __all__ = ["Settings", "Converged", "IterationObserver", "solve_increment", "FLOOR_FRACTION"]
@@ -248,7 +249,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             u, ev = _line_search(problem, u, du, u_old, states, ctx_k, f_ext, free, rhs, du_f)
         else:
             u = u + du
-            ev = problem.evaluate(u, u_old, states, ctx_k, True)
+            ev = problem.evaluate(u, u_old, states, ctx_k, _tangent_wanted(history, settings.rtol))
         imposing = False
         du_imposed[:] = 0.0
     # a solve that converged with held values on the last allowed iteration, whose review
@@ -292,6 +293,17 @@ class _Observers:
 
     def switching(self, states) -> bool:
         return any(o.switching(states) for o in self.all)
+
+
+def _tangent_wanted(history: list[float], rtol: float):
+    """True, or ``LATER`` when the next iterate is expected to converge: Newton's quadratic
+    model ``r_k+1 = r_k^3 / r_k-1^2`` below ten times the tolerance.  The evaluation then
+    computes the forces first and the tangent only if it is read (bit for bit the same:
+    :meth:`lagamine_py.solver.problem.Problem.evaluate`), saving the tangent of the evaluation
+    Newton converges at; a wrong guess costs a fused kernel's forces twice."""
+    if len(history) < 2 or not history[-2] > 0.0:
+        return True
+    return LATER if history[-1] ** 3 <= 10.0 * rtol * history[-2] ** 2 else True
 
 
 def _predicted_energy(problem, data, d: np.ndarray) -> float:

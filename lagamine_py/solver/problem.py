@@ -16,6 +16,7 @@ import numpy as np
 from .. import kernels, registry
 from ..core.errors import CutbackRequest, GroupFailure
 from ..core.status import OPEN, SLIP
+from ..elements.base import LATER
 from ..elements.contact import ContactGroup
 from ..elements.edges import PressureGroup, surface_faces
 from ..elements.two_body import TwoBodyGroup
@@ -32,6 +33,25 @@ class Evaluation:
     states: list[dict]              # trial states
     scale: float                    # max over groups of |f_g| (force scale of the residual test)
     results: list[Any] = field(default_factory=list)
+
+
+class PendingTangent(Evaluation):
+    """An :class:`Evaluation` asked with ``tangent=LATER``: ``data`` is computed when first read
+    (``finish()``), then kept."""
+
+    def __init__(self, f_int, data, states, scale, results, finish):
+        self._finish = finish
+        super().__init__(f_int, data, states, scale, results)
+
+    @property
+    def data(self):
+        if self._data is None and self._finish is not None:
+            self._data, self._finish = self._finish(), None
+        return self._data
+
+    @data.setter
+    def data(self, value):
+        self._data = value
 
 
 @dataclass
@@ -91,12 +111,19 @@ class Problem:
         return sum(len(self.groups[k].dofs) for k in self.indices(SOLID))
 
     def evaluate(self, u_new: np.ndarray, u_old: np.ndarray, states: list[dict], ctx,
-                 tangent: bool = True) -> Evaluation:
+                 tangent=True) -> Evaluation:
         """Compute every group at ``u_new`` (ndof,) from the committed ``states``; assemble.
 
         Groups with a fused kernel (:meth:`fused`) add their tangent into the CSR data and their
         force into their own global vector as they compute (``results[k].K`` is then None);
         the others return (e, nd, nd) blocks scattered afterwards, in group order.
+
+        ``tangent``: True, False, or :data:`~lagamine_py.elements.base.LATER` (Newton's choice
+        for an evaluation it expects to converge at, whose tangent nobody uses): the forces and
+        states now, the tangent when ``data`` is first read -- from what the groups that defer
+        it kept (:attr:`~lagamine_py.elements.base.Group.defers_tangent`), the fused groups
+        computed again, the others' blocks computed now --, bit for bit the ``data`` of
+        ``tangent=True``.
 
         Raises :class:`~lagamine_py.core.errors.GroupFailure` when a group reports a failure
         or raises an ``ArithmeticError`` (a ``CutbackRequest``, floating-point errors); a
@@ -104,33 +131,64 @@ class Problem:
         n2 = u_new.size if self.nodal < 0 else self.nodal
         un, uo = u_new[:n2].reshape(-1, 2), u_old[:n2].reshape(-1, 2)
         ctx = self.tool_context(ctx, u_new, u_old)
+        later = tangent is LATER
         results, vectors = [], {}
         fused = [g.fused for g in self.groups]
-        data = np.zeros(self.pattern.nnz) if tangent and any(fused) else None
+        data = np.zeros(self.pattern.nnz) if tangent and not later and any(fused) else None
         for k, g in enumerate(self.groups):
-            try:
-                if fused[k]:
-                    vectors[k] = np.zeros(self.ndof)
-                    r = g.compute_into(un, uo, states[k], ctx, tangent, data, vectors[k],
-                                       self.pattern.positions[k])
-                else:
-                    r = g.compute(un, uo, states[k], ctx, tangent)
-            except ArithmeticError as exc:
-                factor = exc.factor if isinstance(exc, CutbackRequest) else None
-                raise GroupFailure(f"{self.group_names[k]}: {exc}", factor=factor) from exc
-            if r.failure:
-                raise GroupFailure(f"{self.group_names[k]}: {r.failure}")
-            results.append(r)
+            ask = bool(tangent)
+            if later:
+                ask = False if fused[k] else LATER if g.defers_tangent else True
+            if fused[k]:
+                vectors[k] = np.zeros(self.ndof)
+            results.append(self._compute_group(k, un, uo, states[k], ctx, ask, data,
+                                               vectors.get(k)))
         f_int = np.zeros(self.ndof)
         scale = 0.0
         for k, r in enumerate(results):
             fk = vectors[k] if fused[k] else self.pattern.group_vector(k, r.f)
             f_int += fk
             scale = max(scale, float(np.linalg.norm(fk)))
+        states_new = [r.state for r in results]
+        if later:
+            return PendingTangent(f_int, None, states_new, scale, results,
+                                  finish=lambda: self._later_data(un, uo, states, ctx, results))
         if tangent:             # the other groups' blocks, after the fused ones (solids first)
             data = self.pattern.assemble_data([None if f else r.K for f, r in zip(fused, results)],
                                               out=data)
-        return Evaluation(f_int, data, [r.state for r in results], scale, results)
+        return Evaluation(f_int, data, states_new, scale, results)
+
+    def _compute_group(self, k, un, uo, state, ctx, tangent, data, f_out):
+        """Group ``k``'s :class:`GroupResult` (through its fused kernel when it has one, adding
+        into ``data`` and ``f_out``); a failure raises :class:`GroupFailure`."""
+        g = self.groups[k]
+        try:
+            if g.fused:
+                r = g.compute_into(un, uo, state, ctx, tangent, data, f_out,
+                                   self.pattern.positions[k])
+            else:
+                r = g.compute(un, uo, state, ctx, tangent)
+        except ArithmeticError as exc:
+            factor = exc.factor if isinstance(exc, CutbackRequest) else None
+            raise GroupFailure(f"{self.group_names[k]}: {exc}", factor=factor) from exc
+        if r.failure:
+            raise GroupFailure(f"{self.group_names[k]}: {r.failure}")
+        return r
+
+    def _later_data(self, un, uo, states, ctx, results) -> np.ndarray:
+        """The CSR data of an evaluation asked with ``tangent=LATER``, in the order of
+        :meth:`evaluate` with ``tangent=True``: the fused groups again (their forces into a
+        scratch vector), then every other group's block, kept or deferred."""
+        fused = [g.fused for g in self.groups]
+        data = np.zeros(self.pattern.nnz) if any(fused) else None
+        blocks = []
+        for k, r in enumerate(results):
+            if fused[k]:
+                self._compute_group(k, un, uo, states[k], ctx, True, data, np.zeros(self.ndof))
+                blocks.append(None)
+            else:
+                blocks.append(r.K if r.K is not None else r.later())
+        return self.pattern.assemble_data(blocks, out=data)
 
     def refresh(self, u: np.ndarray) -> bool:
         """Let every group re-pair from the displacements ``u`` (ndof,) before an increment
