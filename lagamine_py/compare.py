@@ -269,6 +269,14 @@ def _norm(v):
     return int(v) if float(v) == int(v) else float(v)
 
 
+
+def _finite_scale(values: np.ndarray) -> float:
+    """Largest |value| of a column over its finite entries (0 when none): a gap is NaN where a
+    contact point has no partner, and a NaN scale would allow no difference at all."""
+    v = np.abs(np.asarray(values, float))
+    v = v[np.isfinite(v)]
+    return float(v.max()) if v.size else 0.0
+
 def _compare_table(fname, run, ref, key_cols, qtys, text_col, tol, rep, force=0.0):
     for c in ("step",) + tuple(key_cols) + tuple(qtys):
         if c not in ref:
@@ -295,7 +303,7 @@ def _compare_table(fname, run, ref, key_cols, qtys, text_col, tol, rep, force=0.
     has_time = "time" in ref and "time" in run
     interpolated = False
     findings = {q: Finding(q, fname) for q in qtys}
-    scale = {q: float(np.max(np.abs(ref[q]))) if len(ref[q]) else 0.0 for q in qtys}
+    scale = {q: _finite_scale(ref[q]) for q in qtys}
     for family in FAMILIES:
         shared = max((scale[q] for q in family if q in scale), default=0.0)
         scale.update({q: shared for q in family if q in scale})

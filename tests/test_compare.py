@@ -158,3 +158,20 @@ def test_a_negative_or_non_finite_tolerance_is_refused(tmp_path, capsys, tol):
     write_run(tmp_path / "run")
     assert main(["compare", str(tmp_path / "run"), str(tmp_path / "run"), "--tol", tol]) == 2
     assert "--tol" in capsys.readouterr().err
+
+
+def test_a_point_without_partner_does_not_stop_round_off_passing(tmp_path):
+    """A contact point with no partner (status none) has no gap (NaN): the gap column's scale is
+    taken over the finite gaps, so round-off elsewhere passes and a real change still fails
+    (the NaN scale once allowed no difference at all: hertz_two_body failed on 1.8e-15)."""
+    def unpaired(d):
+        lines = (d / "contact.csv").read_text().splitlines()
+        head, rows = lines[0].split(","), [r.split(",") for r in lines[1:]]
+        rows[0][head.index("status")] = "none"
+        (d / "contact.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    for name, scale in (("ref", 1.0), ("roundoff", 1.0 + 1e-13), ("changed", 1.01)):
+        write_run(tmp_path / name, scale=scale)
+        unpaired(tmp_path / name)
+    assert compare_dirs(tmp_path / "roundoff", tmp_path / "ref").ok
+    rep = compare_dirs(tmp_path / "changed", tmp_path / "ref")
+    assert not rep.ok and any(f.quantity == "gap" and f.worst > 1 for f in rep.findings)
