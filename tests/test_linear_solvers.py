@@ -223,6 +223,32 @@ def test_auto_picks_by_size(tangents, monkeypatch):
         assert _rel_residual(A, auto.solve(b), b) < 1e-10
 
 
+def test_auto_moves_to_pardiso_after_a_factor_that_outgrew_its_fill(tangents, monkeypatch):
+    """Below AUTO_PARDISO_DOFS, AUTO keeps SPLU while its factor stays under AUTO_SPLU_FILL
+    entries; once one factor outgrew it, the next factorisations are PARDISO's (when
+    installed), with the same solution."""
+    A, b = tangents["nonsym"], tangents["b"]
+    monkeypatch.setattr(linear, "AUTO_PARDISO_DOFS", A.shape[0] + 1)
+    fill = linear.SpluSolver()
+    fill.factor(A)
+    monkeypatch.setattr(linear, "AUTO_SPLU_FILL", fill.lu.nnz)        # not above: SPLU stays
+    auto = make_solver("AUTO")
+    for _ in range(2):
+        auto.factor(A)
+        assert isinstance(auto.impl, SpluSolver) and not auto.outgrown
+    monkeypatch.setattr(linear, "AUTO_SPLU_FILL", fill.lu.nnz - 1)
+    auto = make_solver("AUTO")
+    auto.factor(A)                                   # this factor is SPLU's, and outgrows
+    assert isinstance(auto.impl, SpluSolver) and auto.outgrown
+    x_splu = auto.solve(b)
+    auto.factor(A)
+    if pardiso_available():
+        assert isinstance(auto.impl, linear.PardisoSolver)
+        assert np.abs(auto.solve(b) - x_splu).max() < 1e-10 * np.abs(x_splu).max()
+    else:
+        assert isinstance(auto.impl, SpluSolver)
+
+
 def test_large_run_without_pardiso_says_so_once(tangents, monkeypatch, caplog):
     """AUTO above its PARDISO size without PARDISO installed: SPLU, and one warning per process
     with the install command; none below the size."""

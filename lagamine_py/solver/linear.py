@@ -35,6 +35,9 @@ from .superlu import splu
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
 AUTO_PARDISO_DOFS = 5_000     # measured crossover, see docs/performance.md
+#: entries of a SuperLU factor (``SuperLU.nnz``) past which AUTO moves a run below
+#: AUTO_PARDISO_DOFS to PARDISO: fill, not size, sets SPLU's cost (docs/performance.md)
+AUTO_SPLU_FILL = 300_000
 PIVOT_RTOL = 1e-12          # |pivot| below this times max |K_ii| counts as zero
 SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a singular A
 
@@ -457,17 +460,21 @@ _told_slow = False
 
 
 class AutoSolver(LinearSolver):
-    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise.
+    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise;
+    below that size too, from the factorisation after one whose SPLU factor outgrew
+    ``AUTO_SPLU_FILL`` entries (a poorly ordered mesh: SPLU's cost follows its fill). The
+    choice is made on counts, not times, so a run takes the same path on any machine.
 
     SPLU above that size says so once per process, with the command that installs PARDISO."""
 
     def __init__(self):
         self.impl: LinearSolver | None = None
+        self.outgrown = False        # an SPLU factor of this run outgrew AUTO_SPLU_FILL
 
     def factor(self, A: sp.csr_matrix) -> None:
         global _told_slow
         large = A.shape[0] > AUTO_PARDISO_DOFS
-        want_pardiso = large and pardiso_available()
+        want_pardiso = (large or self.outgrown) and pardiso_available()
         if large and not want_pardiso and not _told_slow:
             _told_slow = True
             logging.getLogger("lagamine_py.solver").warning(SLOW_SOLVER_NOTICE.format(n=A.shape[0]))
@@ -475,6 +482,8 @@ class AutoSolver(LinearSolver):
         if not isinstance(self.impl, cls):
             self.impl = cls()
         self.impl.factor(A)
+        if cls is SpluSolver and self.impl.lu.nnz > AUTO_SPLU_FILL:
+            self.outgrown = True
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self.impl.solve(b)
