@@ -204,20 +204,46 @@ def _field(grid: _Grid, name: str, value, kind: str = "int") -> None:
                                        np.float64 if kind == "float" else np.int32))
 
 
+#: bytes of an array base64-encoded per call: a multiple of 3, so that the pieces' encodings
+#: concatenate to the encoding of the whole (no padding inside), and above the 4-byte count;
+#: 1 MiB of text per piece
+_PIECE = 3 << 18
+
+
+def _appended_size(nbytes: int) -> int:
+    """Length of an array's appended base64 text: its UInt32 byte count and its bytes."""
+    return 4 * ((4 + nbytes + 2) // 3)
+
+
+def _write_appended(fh, values: np.ndarray) -> None:
+    """The appended data of one array (its UInt32 byte count, then its bytes, base64) written
+    piece by piece: what ``base64.b64encode(count + values.tobytes())`` gives, without a copy
+    of the array or its whole text in memory."""
+    raw = values.reshape(-1).view(np.uint8)
+    head = np.uint32(raw.size).astype("<u4").tobytes()
+    first = _PIECE - len(head)
+    fh.write(base64.b64encode(head + raw[:first].tobytes()))
+    for a in range(first, raw.size, _PIECE):
+        fh.write(base64.b64encode(raw[a:a + _PIECE]))
+
+
 def _write_vtu(grid: _Grid, path: Path) -> None:
     """The VTU file of ``grid`` as VTK's own XML writer writes it with appended, base64-encoded,
     uncompressed data (``header_type="UInt32"``: each array is the base64 text of its byte
     count and its bytes, little-endian), which ParaView, VTK and meshio read (see the module
     doc for the encoding).  Written here rather than through the vtk library: its import and
-    objects were 0.1-0.2 s of a short run."""
-    xml, blobs, offset = [], [], 0
+    objects were 0.1-0.2 s of a short run.
+
+    The XML comes first, each array's offset from the lengths of the texts before it; then
+    every array is encoded and written piece by piece (:func:`_write_appended`): the file is
+    never whole in memory (at 320x160 the body file's text was ~0.1 GB, built beside the arrays
+    it encodes while the factor was held)."""
+    xml, arrays, offset = [], [], 0
 
     def array(name, values, indent, extra="", tuples=False):
         nonlocal offset
         values = np.ascontiguousarray(values)
         values = values.astype(values.dtype.newbyteorder("<"), copy=False)
-        raw = values.tobytes()
-        blob = base64.b64encode(np.uint32(len(raw)).astype("<u4").tobytes() + raw)
         ncomp = values.shape[1] if values.ndim == 2 else 1
         attrs = f'type="{_VTK_TYPES[values.dtype.kind + str(values.dtype.itemsize)]}"{extra} ' \
                 f'Name={quoteattr(name)}'
@@ -228,8 +254,8 @@ def _write_vtu(grid: _Grid, path: Path) -> None:
             if ncomp == 6:
                 attrs += "".join(f' ComponentName{k}="{c}"' for k, c in enumerate(TENSOR_NAMES))
         xml.append(f'{indent}<DataArray {attrs} format="appended" offset="{offset}"/>')
-        blobs.append(blob)
-        offset += len(blob)
+        arrays.append(values)
+        offset += _appended_size(values.nbytes)
 
     def data(tag, d: _Data):
         active = "".join(f' {key}={quoteattr(v)}' for key, v in (("Vectors", d.vectors),
@@ -258,8 +284,8 @@ def _write_vtu(grid: _Grid, path: Path) -> None:
             '  <AppendedData encoding="base64">', "   _"]
     with open(path, "wb") as fh:
         fh.write("\n".join(xml).encode())
-        for blob in blobs:
-            fh.write(blob)
+        for values in arrays:
+            _write_appended(fh, values)
         fh.write(b"\n  </AppendedData>\n</VTKFile>\n")
 
 
@@ -318,14 +344,15 @@ class VtkWriter(Writer):
 
     def _write_state(self, result: IncrementResult) -> None:
         stem = f"{self.deck}_{{}}{self.counter:04d}.vtu"
-        blocks = [("body", stem.format(""), self._body_grid(result))]
+        # each grid built when its file is written: one grid's arrays alive at a time
+        blocks = [("body", stem.format(""), lambda: self._body_grid(result))]
         blocks += [(f"contact {cp.name}", stem.format(f"contact_{file_tag(cp.name)}_"),
-                    self._contact_grid(result, cp)) for cp in result.contacts]
+                    lambda cp=cp: self._contact_grid(result, cp)) for cp in result.contacts]
         blocks += [(f"foundation {name}", stem.format(f"foundation_{file_tag(name)}_"),
-                    self._foundation_grid(result, name, pts))
+                    lambda name=name, pts=pts: self._foundation_grid(result, name, pts))
                    for name, pts in result.foundations.items()]
         for name, fname, grid in blocks:
-            _write_vtu(grid, self.outdir / fname)
+            _write_vtu(grid(), self.outdir / fname)
             part = self.parts.setdefault(name, len(self.parts))
             self.entries.append((float(result.time), part, fname, name))
         self.counter += 1
