@@ -129,15 +129,33 @@ def recovered(n_nodes: int, cells: list[CellBlock], fields, bounded: bool = True
     nodal values (n, ...) by :func:`~lagamine_py.output.recovery.nodal_values` (``plan``: a
     :class:`~lagamine_py.output.recovery.RecoveryPlan` of the cells' connectivities, kept by
     the writer across increments) and element values (e, ...) the Gauss-weight means; tensors
-    as ParaView's 6 components."""
-    gauss = [np.concatenate([np.asarray(f[2][b], float).reshape(len(c.conn), -1, f[1])
-                             for f in fields], axis=-1)
-             for b, c in enumerate(cells)]                           # (e, q, k) per block
-    nodal = nodal_values(n_nodes, [(c.element, c.conn, g) for c, g in zip(cells, gauss)], bounded,
-                         plan)
-    means = np.concatenate([np.einsum("q,eqk->ek", c.element.gauss_weights(), g)
-                            for c, g in zip(cells, gauss)])
-    return _split(nodal, fields), _split(means, fields)
+    as ParaView's 6 components.
+
+    Field by field: the recovery's temporaries (the Gauss values, their extrapolations to every
+    element's nodes and the patch bounds, each (e, a, components)) are then those of one field
+    rather than of all 15 components at once (~14 MB at 80x40, ~0.2 GB at 320x160, while the
+    factor is held); every value is computed by the same operations as before."""
+    nodal, element = {}, {}
+    for batch in _batches(fields):
+        gauss = [np.concatenate([np.asarray(f[2][b], float).reshape(len(c.conn), -1, f[1])
+                                 for f in batch], axis=-1)
+                 for b, c in enumerate(cells)]                       # (e, q, k) per block
+        values = nodal_values(n_nodes, [(c.element, c.conn, g) for c, g in zip(cells, gauss)],
+                              bounded, plan)
+        means = np.concatenate([np.einsum("q,eqk->ek", c.element.gauss_weights(), g)
+                                for c, g in zip(cells, gauss)])
+        nodal.update(_split(values, batch))
+        element.update(_split(means, batch))
+    order = [f[0] for f in fields]                  # the files list them in the fields' order
+    return {k: nodal[k] for k in order}, {k: element[k] for k in order}
+
+
+def _batches(fields):
+    """The fields recovered together: each tensor alone, the scalars in one batch (NumPy's
+    products of a single column take another path whose round-off differs: batched, the
+    values are those of one product over every field, bit for bit)."""
+    scalars = [f for f in fields if f[1] == 1]
+    return [[f] for f in fields if f[1] != 1] + ([scalars] if scalars else [])
 
 
 def _split(values: np.ndarray, fields):
