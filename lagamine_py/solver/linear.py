@@ -10,10 +10,10 @@ has nothing to do with the stiffness (they blur the pivot-based singularity diag
 the first iteration, so boundary elements are not distorted alone by a jump of their nodes.
 
 Solvers: ``SPLU`` (SuperLU with the ``MMD_AT_PLUS_A`` ordering), ``PARDISO`` (MKL through
-``pypardiso``, usable when it imports), ``AUTO`` (PARDISO above 5k DOFs when available,
-SPLU otherwise: with its analysis reused PARDISO is faster from 3-5k DOFs on press-slide
-tangents, see ``docs/performance.md``; below, SPLU costs milliseconds and names the unrestrained
-DOFs of a singular tangent by its pivots).  The default COLAMD ``spsolve`` is never used
+``pypardiso``, usable when it imports), ``AUTO`` (PARDISO above 8k DOFs when available,
+SPLU otherwise: with its analysis reused PARDISO is faster from 8-11k DOFs on press-slide
+runs, see ``docs/performance.md``; below, SPLU costs no more time, less memory, and names the
+unrestrained DOFs of a singular tangent by its pivots).  The default COLAMD ``spsolve`` is never used
 (4-17x slower on these matrices).
 """
 from __future__ import annotations
@@ -34,7 +34,10 @@ from .superlu import splu
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
-AUTO_PARDISO_DOFS = 5_000     # measured crossover, see docs/performance.md
+#: measured crossover (docs/performance.md, "Memory"): whole press-slide runs at 5k and 7.3k DOFs
+#: cost 0.84-0.88x the CPU on SPLU and 20-35 MB less memory (MKL's libraries and a factor twice
+#: SuperLU's are not loaded); at 11k PARDISO is 1.2x faster
+AUTO_PARDISO_DOFS = 8_000
 PIVOT_RTOL = 1e-12          # |pivot| below this times max |K_ii| counts as zero
 SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a singular A
 
@@ -127,6 +130,11 @@ class SpluSolver(LinearSolver):
         # and solve with trans="T".
         At = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
         scale = np.abs(A.diagonal()).max() if A.shape[0] else 0.0
+        # the last factor goes before the next is computed, and the heap's free pages with it:
+        # SuperLU grows its work arrays by reallocation, which left the heap holding 20-70 MB
+        # of freed blocks at 5-7k DOFs (peaks 123-197 MB from one run to the next, 40x20-48x24)
+        self.lu = None
+        return_free_heap()
         try:
             self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
         except RuntimeError:                # "Factor is exactly singular"
@@ -140,6 +148,25 @@ class SpluSolver(LinearSolver):
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self.lu.solve(np.asarray(b, float), trans="T")
+
+
+@functools.lru_cache(maxsize=None)
+def _malloc_trim():
+    """glibc's ``malloc_trim``, or None (another C library: nothing to call)."""
+    try:
+        return ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+def return_free_heap() -> None:
+    """Give the pages of the C heap's free blocks back to the system (glibc's
+    ``malloc_trim(0)``, ~1 ms; nothing where the C library has no such call).  Freed blocks
+    below glibc's mmap threshold (which rises to the size of the largest block freed, up to
+    32 MB) stay in the heap, resident, until a later allocation reuses them."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
 
 
 def _exact_singular_dofs(At: sp.csc_matrix, scale: float) -> np.ndarray:
@@ -463,7 +490,7 @@ _told_slow = False
 
 
 class AutoSolver(LinearSolver):
-    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise.
+    """PARDISO above ``AUTO_PARDISO_DOFS`` (8k) DOFs when pypardiso is installed, SPLU otherwise.
 
     SPLU above that size says so once per process, with the command that installs PARDISO."""
 
