@@ -34,9 +34,9 @@ from .superlu import splu
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
-#: measured crossover (docs/performance.md, "Memory"): whole press-slide runs at 5k and 7.3k DOFs
-#: cost 0.84-0.88x the CPU on SPLU and 20-35 MB less memory (MKL's libraries and a factor twice
-#: SuperLU's are not loaded); at 11k PARDISO is 1.2x faster
+#: measured crossover (docs/performance.md, "Memory, branch memory"): whole press-slide runs at
+#: 5k and 7.3k DOFs cost 0.9x the CPU on SPLU and 26-34 MB less memory (MKL's libraries and a
+#: factor twice SuperLU's are not loaded); at 11k PARDISO is 1.2x faster
 AUTO_PARDISO_DOFS = 8_000
 PIVOT_RTOL = 1e-12          # |pivot| below this times max |K_ii| counts as zero
 SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a singular A
