@@ -5,20 +5,23 @@ happened (issue 17 item 5).
 
     python tools/peak_memory.py DECK [--kernel AUTO|NUMPY|NUMBA] [--solver NAME]
                                      [--controls KEY=VALUE ...] [--libraries] [--tracemalloc]
+                                     [--trim PHASE ...]
 
-Prints the resident set after the imports, after the deck and the problem are built, then per
-phase: calls, the high-water mark's total rise inside it, the resident set at the end of its
-last call that raised the peak, and the final peak (the same figure as ``/usr/bin/time``'s
-``%M`` for the whole process, less the interpreter's few MB of this script).  ``--tracemalloc`` adds, per phase, the largest growth of the traced (Python and NumPy)
-allocations within one call (slow).  ``--libraries``
-adds the mapped shared libraries' resident sizes at the end (``/proc/self/smaps``: numba's
-LLVM, MKL ...).  Not a test: the measurement of ``docs/performance.md``'s memory paragraphs.
+Prints the resident set after the imports and after the deck, then per phase: calls, the
+high-water mark's total rise inside it, the peak after its last rise and at which call, and the
+final peak (the same figure as ``/usr/bin/time``'s ``%M`` for the whole process, give or take
+the few MB of this script); then the resident set after ``malloc_trim(0)`` (what the heap held
+freed).  ``--tracemalloc`` adds, per phase, the largest growth of the traced (Python and NumPy)
+allocations within one call (slow).  ``--libraries`` adds the mapped shared libraries' resident
+sizes at the end (``/proc/self/smaps``: numba's LLVM, MKL ...).  ``--trim PHASE`` calls
+``malloc_trim(0)`` before each call of the phases named (an experiment: does the heap's freed
+memory set the peak?).  Not a test: the measurement of ``docs/performance.md``'s memory
+paragraphs.
 """
 from __future__ import annotations
 
 import argparse
 import functools
-import os
 import sys
 import tempfile
 import time
@@ -128,7 +131,7 @@ def main(argv=None) -> int:
     defer_numpy_submodules()
     from lagamine_py.deck import load_deck
     from lagamine_py.solver import run
-    from lagamine_py.solver import linear, newton, problem as problem_mod, reuse, restart, steps
+    from lagamine_py.solver import linear, newton, problem as problem_mod, reuse, steps
     from lagamine_py.solver.pattern import Pattern
     from lagamine_py.output import vtk, tables
     print(f"interpreter {base / 1024:.0f} MB, after the imports {status_kb('VmRSS') / 1024:.0f} MB")
