@@ -122,13 +122,15 @@ def test_the_appended_size_is_the_length_of_the_text():
 
 
 @pytest.mark.parametrize("deck", DECKS, ids=[d.stem for d in DECKS])
-def test_recovery_by_batches_is_the_recovery_of_all_fields_at_once(deck, deck_run):
+def test_recovery_by_batches_is_the_recovery_of_all_fields_at_once(deck, deck_run, monkeypatch):
     """The body's nodal and element values, recovered a tensor at a time and the scalars
-    together (``recovered``: their temporaries a field's, not all 15 components'), are bit for
-    bit what the recovery of every field in one (e, q, 15) block gave (the former code, here),
-    in the same order, on every example deck's written increments."""
+    together (``recovered`` above ``RECOVERY_BATCH_BYTES``, forced here: their temporaries a
+    field's, not all 15 components'), are bit for bit what the recovery of every field in one
+    (e, q, 15) block gave (the former code, here), in the same order, on every example deck's
+    written increments."""
     from lagamine_py.output.recovery import nodal_values
 
+    monkeypatch.setattr(vtk_out, "RECOVERY_BATCH_BYTES", 0)
     got = deck_run(deck)
     assert got.outcome.status == 0, got.outcome.message
     checked = 0
@@ -150,3 +152,14 @@ def test_recovery_by_batches_is_the_recovery_of_all_fields_at_once(deck, deck_ru
             np.testing.assert_array_equal(element[name], values, err_msg=name)
         checked += 1
     assert checked
+
+
+def test_batches_by_size():
+    """All the fields in one batch up to RECOVERY_BATCH_BYTES of Gauss values, else each tensor
+    alone and the scalars together, in the fields' order."""
+    fields = [("stress", 4, []), ("von_mises", 1, []), ("pressure", 1, []),
+              ("log_strain", 4, []), ("PEEQ", 1, [])]
+    small = vtk_out.RECOVERY_BATCH_BYTES // 8
+    assert vtk_out._batches(fields, small) == [fields]
+    names = [[f[0] for f in b] for b in vtk_out._batches(fields, small + 1)]
+    assert names == [["stress"], ["log_strain"], ["von_mises", "pressure", "PEEQ"]]
