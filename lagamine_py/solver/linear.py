@@ -10,10 +10,10 @@ has nothing to do with the stiffness (they blur the pivot-based singularity diag
 the first iteration, so boundary elements are not distorted alone by a jump of their nodes.
 
 Solvers: ``SPLU`` (SuperLU with the ``MMD_AT_PLUS_A`` ordering), ``PARDISO`` (MKL through
-``pypardiso``, usable when it imports), ``AUTO`` (PARDISO above 5k DOFs when available,
-SPLU otherwise: with its analysis reused PARDISO is faster from 3-5k DOFs on press-slide
-tangents, see ``docs/performance.md``; below, SPLU costs milliseconds and names the unrestrained
-DOFs of a singular tangent by its pivots).  The default COLAMD ``spsolve`` is never used
+``pypardiso``, usable when it imports), ``AUTO`` (PARDISO above 8k DOFs when available,
+SPLU otherwise: with its analysis reused PARDISO is faster from 8-11k DOFs on press-slide
+runs, see ``docs/performance.md``; below, SPLU costs no more time, less memory, and names the
+unrestrained DOFs of a singular tangent by its pivots).  The default COLAMD ``spsolve`` is never used
 (4-17x slower on these matrices).
 """
 from __future__ import annotations
@@ -34,10 +34,13 @@ from .superlu import splu
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
-AUTO_PARDISO_DOFS = 5_000     # measured crossover, see docs/performance.md
+#: measured crossover (docs/performance.md, "Memory, branch memory"): whole press-slide runs at
+#: 5k and 7.3k DOFs cost 0.9x the CPU on SPLU and 26-34 MB less memory (MKL's libraries and a
+#: factor twice SuperLU's are not loaded); at 11k PARDISO is 1.2x faster
+AUTO_PARDISO_DOFS = 8_000
 #: entries of a SuperLU factor (``SuperLU.nnz``) past which AUTO moves a run below
 #: AUTO_PARDISO_DOFS to PARDISO: fill, not size, sets SPLU's cost (docs/performance.md)
-AUTO_SPLU_FILL = 300_000
+AUTO_SPLU_FILL = 1_500_000
 PIVOT_RTOL = 1e-12          # |pivot| below this times max |K_ii| counts as zero
 SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a singular A
 
@@ -66,13 +69,16 @@ class FreeDofs:
         # index arrays of one integer type (int32 while it holds them): scipy keeps them as they
         # are, so every K_ff shares the same two arrays and a solver recognises its structure
         # by identity (a mixed pair was recast, i.e. copied and compared, every iteration)
-        # (``ff`` itself stays intp: a gather by int32 indices converts them first, +50 %)
+        # (``ff`` is a boolean mask of the full ``data``: a gather through it is as fast as
+        # through intp indices when most entries are free (22 against 24 ms at 9.6M entries),
+        # and it is one byte an entry instead of eight: 77 -> 10 MB at 309k DOFs; int32
+        # indices would be converted first, +70 %)
         itype = index_dtype(max(pattern.nnz, n + 1))
-        self.ff = np.flatnonzero(row_free & col_free)
+        self.ff = row_free & col_free
         self.ff_indices = new_index[cols[self.ff]].astype(itype)
         self.ff_indptr = np.zeros(self.nfree + 1, itype)
         np.cumsum(np.bincount(new_index[rows[self.ff]], minlength=self.nfree), out=self.ff_indptr[1:])
-        self.ff_diag = np.flatnonzero(row_free & col_free & (rows == cols))
+        self.ff_diag = np.flatnonzero(self.ff & (rows == cols))
         self.diag_dof = rows[self.ff_diag]
         # K_fc: entries coupling a free row to a constrained column
         self.fc = np.flatnonzero(row_free & ~col_free)
@@ -127,6 +133,11 @@ class SpluSolver(LinearSolver):
         # and solve with trans="T".
         At = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
         scale = np.abs(A.diagonal()).max() if A.shape[0] else 0.0
+        # the last factor goes before the next is computed, and the heap's free pages with it:
+        # SuperLU grows its work arrays by reallocation, which left the heap holding 20-70 MB
+        # of freed blocks at 5-7k DOFs (peaks 123-197 MB from one run to the next, 40x20-48x24)
+        self.lu = None
+        return_free_heap()
         try:
             self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
         except RuntimeError:                # "Factor is exactly singular"
@@ -140,6 +151,25 @@ class SpluSolver(LinearSolver):
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self.lu.solve(np.asarray(b, float), trans="T")
+
+
+@functools.lru_cache(maxsize=None)
+def _malloc_trim():
+    """glibc's ``malloc_trim``, or None (another C library: nothing to call)."""
+    try:
+        return ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+def return_free_heap() -> None:
+    """Give the pages of the C heap's free blocks back to the system (glibc's
+    ``malloc_trim(0)``, ~1 ms; nothing where the C library has no such call).  Freed blocks
+    below glibc's mmap threshold (which rises to the size of the largest block freed, up to
+    32 MB) stay in the heap, resident, until a later allocation reuses them."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
 
 
 def _exact_singular_dofs(At: sp.csc_matrix, scale: float) -> np.ndarray:
@@ -280,17 +310,20 @@ class PardisoSolver(LinearSolver):
             self._empty_rows = None
         rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(A.indptr))
         # transpose permutation: data[tperm] is the data of A^T in A's CSR order (structurally
-        # symmetric patterns only, which element patterns are)
-        T = sp.csr_matrix((np.arange(A.nnz, dtype=np.float64), A.indices, A.indptr),
+        # symmetric patterns only, which element patterns are); the entry numbers carried as
+        # the matrix's data in the index type (float64 doubled this transient: 0.15 GB at 309k)
+        itype = index_dtype(A.nnz)
+        T = sp.csr_matrix((np.arange(A.nnz, dtype=itype), A.indices, A.indptr),
                           shape=A.shape).T.tocsr()
         T.sort_indices()
-        itype = index_dtype(A.nnz)
         if np.array_equal(T.indptr, A.indptr) and np.array_equal(T.indices, A.indices):
-            self._tperm = T.data.astype(itype)
+            self._tperm = T.data.astype(itype, copy=False)
         else:
             self._tperm = None
         del T
-        self._upper = np.flatnonzero(A.indices >= rows)       # intp: gathered per factor
+        # the upper triangle's entries as a mask: a byte an entry, not an intp of each (the
+        # gather per symmetric factorisation is 7 ms slower at 309k DOFs, 29 MB smaller)
+        self._upper = A.indices >= rows
         up_rows = rows[self._upper]
         # zero-based indexing (iparm[34] = 1): A's own index arrays, no one-based copies
         self._ia_full = np.ascontiguousarray(A.indptr, dtype=np.int32)
@@ -460,7 +493,7 @@ _told_slow = False
 
 
 class AutoSolver(LinearSolver):
-    """PARDISO above ``AUTO_PARDISO_DOFS`` (5k) DOFs when pypardiso is installed, SPLU otherwise;
+    """PARDISO above ``AUTO_PARDISO_DOFS`` (8k) DOFs when pypardiso is installed, SPLU otherwise;
     below that size too, from the factorisation after one whose SPLU factor outgrew
     ``AUTO_SPLU_FILL`` entries (a poorly ordered mesh: SPLU's cost follows its fill). The
     choice is made on counts, not times, so a run takes the same path on any machine.

@@ -249,6 +249,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             u, ev = _line_search(problem, u, du, u_old, states, ctx_k, f_ext, free, rhs, du_f)
         else:
             u = u + du
+            ev = None               # its tangent freed before the next one is computed
             ev = problem.evaluate(u, u_old, states, ctx_k, _tangent_wanted(history, settings.rtol))
         imposing = False
         du_imposed[:] = 0.0
