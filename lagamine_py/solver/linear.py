@@ -158,7 +158,7 @@ def _malloc_trim():
     """glibc's ``malloc_trim``, or None (another C library: nothing to call)."""
     try:
         return ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
+    except (OSError, AttributeError, TypeError):     # TypeError: Windows has no CDLL(None)
         return None
 
 
