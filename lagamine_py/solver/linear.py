@@ -78,6 +78,7 @@ class FreeDofs:
         self.ff_indices = new_index[cols[self.ff]].astype(itype)
         self.ff_indptr = np.zeros(self.nfree + 1, itype)
         np.cumsum(np.bincount(new_index[rows[self.ff]], minlength=self.nfree), out=self.ff_indptr[1:])
+        self.not_ff = np.flatnonzero(~self.ff)       # the other entries: few (constrained DOFs)
         self.ff_diag = np.flatnonzero(self.ff & (rows == cols))
         self.diag_dof = rows[self.ff_diag]
         # K_fc: entries coupling a free row to a constrained column
@@ -94,6 +95,19 @@ class FreeDofs:
         A.has_sorted_indices = True
         A.has_canonical_format = True
         return A
+
+    def rest(self, data: np.ndarray) -> np.ndarray:
+        """The entries of the full CSR ``data`` that ``K_ff`` leaves out (those of constrained
+        rows or columns), in the order of ``data``: with ``K_ff``'s, all of it (:meth:`join`)."""
+        return data[self.not_ff]
+
+    def join(self, kff_data: np.ndarray, rest: np.ndarray) -> np.ndarray:
+        """The full CSR data from ``K_ff``'s data and :meth:`rest`'s (bit for bit the data they
+        were taken from)."""
+        data = np.empty(self.ff.size, np.result_type(kff_data, rest))
+        data[self.ff] = kff_data
+        data[self.not_ff] = rest
+        return data
 
     def kfc_dot(self, data: np.ndarray, du_full: np.ndarray) -> np.ndarray:
         """``K_fc @ du_c`` (nfree,), ``du_full`` a global (ndof,) vector read at constrained DOFs."""
