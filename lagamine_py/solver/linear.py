@@ -322,7 +322,6 @@ class PardisoSolver(LinearSolver):
             self._empty_rows = _suspects(A)
         else:
             self._empty_rows = None
-        rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(A.indptr))
         # transpose permutation: data[tperm] is the data of A^T in A's CSR order (structurally
         # symmetric patterns only, which element patterns are); the entry numbers carried as
         # the matrix's data in the index type (float64 doubled this transient: 0.15 GB at 309k)
@@ -335,17 +334,26 @@ class PardisoSolver(LinearSolver):
         else:
             self._tperm = None
         del T
-        # the upper triangle's entries as a mask: a byte an entry, not an intp of each (the
-        # gather per symmetric factorisation is 7 ms slower at 309k DOFs, 29 MB smaller)
-        self._upper = A.indices >= rows
-        up_rows = rows[self._upper]
         # zero-based indexing (iparm[34] = 1): A's own index arrays, no one-based copies
         self._ia_full = np.ascontiguousarray(A.indptr, dtype=np.int32)
         self._ja_full = np.ascontiguousarray(A.indices, dtype=np.int32)
-        self._ia_sym = np.zeros(n + 1, np.int32)
-        np.cumsum(np.bincount(up_rows, minlength=n), out=self._ia_sym[1:])
-        self._ja_sym = self._ja_full[self._upper]
+        self._sym_structure = None          # (upper mask, ia, ja): at the first symmetric A
         self.mtype = 0                                   # force an analysis
+
+    def _symmetric_structure(self):
+        """The upper triangle of the analysed structure: ``(mask of A's entries, ia, ja)``,
+        built when a matrix of this structure is first found symmetric (a step whose tangents
+        are all non-symmetric never holds it: 29 MB at 309k DOFs).  The upper triangle's
+        entries as a mask: a byte an entry, not an intp of each (the gather per symmetric
+        factorisation is 7 ms slower at 309k DOFs, 29 MB smaller)."""
+        if self._sym_structure is None:
+            indptr, indices = self._struct
+            rows = np.repeat(np.arange(self.n, dtype=np.int32), np.diff(indptr))
+            upper = indices >= rows
+            ia = np.zeros(self.n + 1, np.int32)
+            np.cumsum(np.bincount(rows[upper], minlength=self.n), out=ia[1:])
+            self._sym_structure = (upper, ia, self._ja_full[upper])
+        return self._sym_structure
 
     def is_symmetric(self, A) -> bool:
         """A is symmetric to round-off (and its structure is).
@@ -422,8 +430,9 @@ class PardisoSolver(LinearSolver):
         sym = self.allow_symmetric and self.is_symmetric(A)
         mtype = -2 if sym else 11
         if sym:
-            self._data = np.ascontiguousarray(A.data[self._upper], dtype=np.float64)
-            self._ia, self._ja = self._ia_sym, self._ja_sym
+            upper, ia_sym, ja_sym = self._symmetric_structure()
+            self._data = np.ascontiguousarray(A.data[upper], dtype=np.float64)
+            self._ia, self._ja = ia_sym, ja_sym
         else:
             self._data = np.ascontiguousarray(A.data, dtype=np.float64)
             self._ia, self._ja = self._ia_full, self._ja_full
