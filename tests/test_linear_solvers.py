@@ -436,3 +436,27 @@ def test_openblas_pinned_to_one_thread():
     info = threadpoolctl.threadpool_info()
     openblas = [i for i in info if i["internal_api"] == "openblas"]
     assert openblas and all(i["num_threads"] == 1 for i in openblas)
+
+
+@needs_pardiso
+def test_pardiso_builds_the_upper_triangle_only_for_a_symmetric_matrix(tangents):
+    """A non-symmetric factorisation holds no symmetric structure; the first symmetric matrix
+    of the same structure builds it: PARDISO then gets exactly the upper triangle (scipy's
+    ``triu``, CSR) and solves the matrix."""
+    S = tangents["sym"]
+    b = tangents["b"][: S.shape[0]]
+    off = np.where(S.indices != np.repeat(np.arange(S.shape[0]), np.diff(S.indptr)),
+                   np.abs(S.data), 0.0)
+    data = S.data.copy()
+    data[int(np.argmax(off))] *= 1.5                     # the largest off-diagonal entry
+    T = sp.csr_matrix((data, S.indices, S.indptr), shape=S.shape)
+    p = linear.PardisoSolver()
+    p.factor(T)
+    assert p.mtype == 11 and p._sym_structure is None
+    p.factor(sp.csr_matrix((S.data, S.indices, S.indptr), shape=S.shape))
+    assert p.mtype == -2 and p._sym_structure is not None
+    U = sp.triu(S, format="csr")
+    U.sort_indices()
+    assert np.array_equal(p._ia, U.indptr) and np.array_equal(p._ja, U.indices)
+    assert np.array_equal(p._data, U.data)
+    assert _rel_residual(S, p.solve(b), b) < 1e-10

@@ -227,3 +227,71 @@ def test_a_failed_attempt_reports_its_solves():
                         observers=(HoldUntilReviewed(),))
     assert err.value.solves == 2
     assert len(err.value.history) == 4
+
+
+def test_singular_tangent_with_imposed_dofs_keeps_the_whole_tangent_for_the_diagnosis():
+    """Newton releases the full tangent before the factorisation and rebuilds it for the
+    singular diagnosis from K_ff and the entries of constrained rows/columns: the error's
+    ``matrix`` is bit for bit the evaluation's data (computed here independently), and the DOFs
+    named are the unrestrained ones (node 1 y, node 2 y), in global numbering."""
+    groups = [Springs([[GROUND, 0], [0, 2], [2, 4]], [1.0, 2.0, 3.0], a=0.5),
+              Springs([[GROUND, 1]], 1.0)]
+    problem, free = setup(groups, 3, [0])
+    assert free.not_ff.size > 0                          # the rest is not empty
+    u0 = np.zeros(6)
+    u_c = np.array([0.1])
+    with pytest.raises(SingularMatrixError) as err:
+        solve_increment(problem, SpluSolver(), free, u0, problem.init_states(),
+                        StepContext(), u_c, np.zeros(6), Settings())
+    assert set(err.value.dofs) == {3, 5}
+    expected = problem.evaluate(u0, u0, problem.init_states(), StepContext(), True).data
+    assert err.value.matrix.dtype == expected.dtype
+    assert np.array_equal(err.value.matrix, expected)
+    assert err.value.matrix.tobytes() == expected.tobytes()
+
+
+def test_free_dofs_rest_and_join_give_back_the_data_bit_for_bit():
+    groups = [Springs([[GROUND, 0], [0, 2], [2, 4], [1, 3]], 1.0), Springs([[GROUND, 1]], 1.0)]
+    problem, free = setup(groups, 3, [0, 3])
+    rng = np.random.default_rng(3)
+    data = rng.standard_normal(problem.pattern.nnz) * 10.0 ** rng.integers(-300, 300, problem.pattern.nnz)
+    A = free.kff(data)
+    rest = free.rest(data)
+    assert A.data.size + rest.size == data.size
+    assert free.join(A.data, rest).tobytes() == data.tobytes()
+
+
+class _LifetimeSolver(SpluSolver):
+    """SPLU that records, at each factorisation, whether an evaluation's full tangent is
+    still alive (weak references to every ``data`` the problem handed out)."""
+
+    def __init__(self, refs):
+        super().__init__()
+        self.refs = refs
+        self.alive_at_factor = []
+
+    def factor(self, A):
+        self.alive_at_factor.append(sum(r() is not None for r in self.refs))
+        super().factor(A)
+
+
+def test_the_full_tangent_is_not_alive_through_the_factorisation():
+    import weakref
+    problem, free = setup(cubic_chain(), 3, [0])
+    refs = []
+    evaluate = problem.evaluate
+
+    def spy(*args, **kw):
+        ev = evaluate(*args, **kw)
+        if ev.data is not None:
+            refs.append(weakref.ref(ev.data))
+        return ev
+
+    problem.evaluate = spy
+    f_ext = np.zeros(6)
+    f_ext[4] = 3.0
+    solver = _LifetimeSolver(refs)
+    conv = solve_increment(problem, solver, free, np.zeros(6), problem.init_states(),
+                           StepContext(), np.array([0.2]), f_ext, Settings(rtol=1e-12))
+    assert conv.iterations >= 3 and len(solver.alive_at_factor) == conv.iterations
+    assert solver.alive_at_factor == [0] * conv.iterations

@@ -78,6 +78,7 @@ class FreeDofs:
         self.ff_indices = new_index[cols[self.ff]].astype(itype)
         self.ff_indptr = np.zeros(self.nfree + 1, itype)
         np.cumsum(np.bincount(new_index[rows[self.ff]], minlength=self.nfree), out=self.ff_indptr[1:])
+        self.not_ff = np.flatnonzero(~self.ff)       # the other entries: few (constrained DOFs)
         self.ff_diag = np.flatnonzero(self.ff & (rows == cols))
         self.diag_dof = rows[self.ff_diag]
         # K_fc: entries coupling a free row to a constrained column
@@ -94,6 +95,19 @@ class FreeDofs:
         A.has_sorted_indices = True
         A.has_canonical_format = True
         return A
+
+    def rest(self, data: np.ndarray) -> np.ndarray:
+        """The entries of the full CSR ``data`` that ``K_ff`` leaves out (those of constrained
+        rows or columns), in the order of ``data``: with ``K_ff``'s, all of it (:meth:`join`)."""
+        return data[self.not_ff]
+
+    def join(self, kff_data: np.ndarray, rest: np.ndarray) -> np.ndarray:
+        """The full CSR data from ``K_ff``'s data and :meth:`rest`'s (bit for bit the data they
+        were taken from)."""
+        data = np.empty(self.ff.size, np.result_type(kff_data, rest))
+        data[self.ff] = kff_data
+        data[self.not_ff] = rest
+        return data
 
     def kfc_dot(self, data: np.ndarray, du_full: np.ndarray) -> np.ndarray:
         """``K_fc @ du_c`` (nfree,), ``du_full`` a global (ndof,) vector read at constrained DOFs."""
@@ -308,7 +322,6 @@ class PardisoSolver(LinearSolver):
             self._empty_rows = _suspects(A)
         else:
             self._empty_rows = None
-        rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(A.indptr))
         # transpose permutation: data[tperm] is the data of A^T in A's CSR order (structurally
         # symmetric patterns only, which element patterns are); the entry numbers carried as
         # the matrix's data in the index type (float64 doubled this transient: 0.15 GB at 309k)
@@ -321,17 +334,26 @@ class PardisoSolver(LinearSolver):
         else:
             self._tperm = None
         del T
-        # the upper triangle's entries as a mask: a byte an entry, not an intp of each (the
-        # gather per symmetric factorisation is 7 ms slower at 309k DOFs, 29 MB smaller)
-        self._upper = A.indices >= rows
-        up_rows = rows[self._upper]
         # zero-based indexing (iparm[34] = 1): A's own index arrays, no one-based copies
         self._ia_full = np.ascontiguousarray(A.indptr, dtype=np.int32)
         self._ja_full = np.ascontiguousarray(A.indices, dtype=np.int32)
-        self._ia_sym = np.zeros(n + 1, np.int32)
-        np.cumsum(np.bincount(up_rows, minlength=n), out=self._ia_sym[1:])
-        self._ja_sym = self._ja_full[self._upper]
+        self._sym_structure = None          # (upper mask, ia, ja): at the first symmetric A
         self.mtype = 0                                   # force an analysis
+
+    def _symmetric_structure(self):
+        """The upper triangle of the analysed structure: ``(mask of A's entries, ia, ja)``,
+        built when a matrix of this structure is first found symmetric (a step whose tangents
+        are all non-symmetric never holds it: 29 MB at 309k DOFs).  The upper triangle's
+        entries as a mask: a byte an entry, not an intp of each (the gather per symmetric
+        factorisation is 7 ms slower at 309k DOFs, 29 MB smaller)."""
+        if self._sym_structure is None:
+            indptr, indices = self._struct
+            rows = np.repeat(np.arange(self.n, dtype=np.int32), np.diff(indptr))
+            upper = indices >= rows
+            ia = np.zeros(self.n + 1, np.int32)
+            np.cumsum(np.bincount(rows[upper], minlength=self.n), out=ia[1:])
+            self._sym_structure = (upper, ia, self._ja_full[upper])
+        return self._sym_structure
 
     def is_symmetric(self, A) -> bool:
         """A is symmetric to round-off (and its structure is).
@@ -408,8 +430,9 @@ class PardisoSolver(LinearSolver):
         sym = self.allow_symmetric and self.is_symmetric(A)
         mtype = -2 if sym else 11
         if sym:
-            self._data = np.ascontiguousarray(A.data[self._upper], dtype=np.float64)
-            self._ia, self._ja = self._ia_sym, self._ja_sym
+            upper, ia_sym, ja_sym = self._symmetric_structure()
+            self._data = np.ascontiguousarray(A.data[upper], dtype=np.float64)
+            self._ia, self._ja = ia_sym, ja_sym
         else:
             self._data = np.ascontiguousarray(A.data, dtype=np.float64)
             self._ia, self._ja = self._ia_full, self._ja_full

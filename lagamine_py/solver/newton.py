@@ -215,7 +215,9 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
         # a solve on the factor in hand stops at a linear residual that leaves the next
         # iterate's residual as it would be (forcing) or below a tenth of the tolerance
         atol = max(forcing(history) * float(np.linalg.norm(rhs)), 0.1 * settings.rtol * scale)
-        du_f = _linear_solve(reuse, free, ev.data, rhs, atol)
+        if energy0 is None:
+            predicted_energy = _predicted_energy(problem, ev.data, predicted)
+        du_f = _linear_solve(reuse, free, ev, rhs, atol)
         solves += 1
         energy = abs(float(du_f @ rhs))
         log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
@@ -225,7 +227,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
         du[free.free] = du_f
         du[c] = du_imposed[c]
         if energy0 is None:
-            energy0 = max(energy, _predicted_energy(problem, ev.data, predicted))
+            energy0 = max(energy, predicted_energy)
         elif energy <= settings.etol * energy0:
             # converged in energy: take this last (tiny) correction, states consistent with it
             u = u + du
@@ -341,16 +343,24 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
 
-def _linear_solve(solves, free, data, rhs, atol=0.0):
-    """Solve ``K_ff du_f = rhs`` (:meth:`FactorReuse.solve`); a singular ``K_ff`` raises
-    SingularMatrixError naming the DOFs (in global numbering) that nothing restrains."""
-    A = free.kff(data)
+def _linear_solve(solves, free, ev, rhs, atol=0.0):
+    """Solve ``K_ff du_f = rhs`` (:meth:`FactorReuse.solve`), ``K_ff`` from the tangent of the
+    evaluation ``ev``; a singular ``K_ff`` raises SingularMatrixError naming the DOFs (in
+    global numbering) that nothing restrains, with the full tangent data as ``matrix``.
+
+    The full tangent is released (``ev.data`` set to None) once ``K_ff`` and the entries it
+    leaves out (:meth:`FreeDofs.rest`, the rows and columns of constrained DOFs: small) are
+    taken from it: it is not alive through the factorisation (77 MB at 309k DOFs); the
+    diagnosis gets it back bit for bit (:meth:`FreeDofs.join`)."""
+    A = free.kff(ev.data)
+    rest = free.rest(ev.data)
+    ev.data = None
     try:
         return solves.solve(free, A, rhs, atol)
     except SingularMatrixError as exc:
         solves.forget()
         err = SingularMatrixError(free.free[exc.dofs], exc.detail, span=diagonal_span(A))
-        err.matrix = data                    # for the rigid-body diagnosis of the controller
+        err.matrix = free.join(A.data, rest)  # for the rigid-body diagnosis of the controller
         raise err from None
 
 
