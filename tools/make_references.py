@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import importlib.metadata
 import os
 import platform
 import shutil
@@ -61,12 +62,13 @@ def _git(*args: str) -> str:
     return out.stdout.strip()
 
 
-def _version(module: str) -> str:
+def _version(distribution: str) -> str:
+    """The installed version, read from the distribution's metadata: importing pypardiso
+    would search the file tree for MKL and leave it loaded for the rest of the process."""
     try:
-        mod = __import__(module)
-    except ImportError:
+        return importlib.metadata.version(distribution)
+    except importlib.metadata.PackageNotFoundError:
         return "absent"
-    return getattr(mod, "__version__", "unknown")
 
 
 def environment() -> str:
