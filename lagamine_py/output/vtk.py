@@ -53,12 +53,12 @@ its import and objects were 0.1-0.2 s of a short run.
 from __future__ import annotations
 
 import base64
-import os
 import re
 from pathlib import Path
 
 import numpy as np
 
+from ..core.outdir import write_atomic
 from ..core.status import STATUS_NAMES
 from ..core.tensors import von_mises
 from ..foundation import Foundation
@@ -506,12 +506,8 @@ class VtkWriter(Writer):
     # -- index ---------------------------------------------------------------------------
     def _write_pvd(self) -> None:
         """Rewrite the PVD index atomically (tmp file + rename): at the start and on resuming."""
-        self._lines = [_pvd_line(*e) for e in self.entries]
-        body = (_PVD_HEAD + "".join(self._lines)).encode()
-        tmp = self.pvd_path.with_name(self.pvd_path.name + ".tmp")
-        with open(tmp, "wb") as fh:
-            fh.write(body + _PVD_FOOT.encode())
-        os.replace(tmp, self.pvd_path)
+        body = (_PVD_HEAD + "".join(_pvd_line(*e) for e in self.entries)).encode()
+        write_atomic(self.pvd_path, body + _PVD_FOOT.encode())
         self._pvd_end = len(body)           # where the footer starts
 
     def _append_pvd(self, first: int) -> None:
@@ -522,9 +518,7 @@ class VtkWriter(Writer):
         650 entries).  A reader sees the new index or, during that one write, its old entries
         with part of the new; a run killed then leaves a torn last line, which a resumed run
         (:func:`read_pvd`) skips and rewrites."""
-        new = [_pvd_line(*e) for e in self.entries[first:]]
-        self._lines += new
-        data = "".join(new).encode()
+        data = "".join(_pvd_line(*e) for e in self.entries[first:]).encode()
         with open(self.pvd_path, "r+b") as fh:
             fh.seek(self._pvd_end)
             fh.write(data + _PVD_FOOT.encode())
