@@ -104,10 +104,7 @@ def _log_b_value(b2: np.ndarray):
 def _log_b_derivative(lam, v0, v1, P0, P1):
     """``C`` (..., 2, 2, 2, 2) of :func:`log_b` from the parts of :func:`_log_b_value`."""
     m = 0.5 * (lam[..., 0] + lam[..., 1])
-    x = 0.5 * (lam[..., 0] - lam[..., 1]) / m
-    small = x < 1e-6
-    xs = np.where(small, 1.0, x)
-    ratio = np.where(small, 1.0 + x * x / 3.0, np.arctanh(np.minimum(xs, 1 - 1e-16)) / xs)
+    ratio = _atanh_over_x(0.5 * (lam[..., 0] - lam[..., 1]) / m)
     S = v0[..., :, None] * v1[..., None, :]
     S = S + np.swapaxes(S, -1, -2)
     return _outer22(P0, 0.5 / lam[..., 0]) + _outer22(P1, 0.5 / lam[..., 1]) \
@@ -125,12 +122,18 @@ def log_stretch(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     F00, F01, F10, F11 = F[..., 0, 0], F[..., 0, 1], F[..., 1, 0], F[..., 1, 1]
     a, b, c = F00 * F00 + F01 * F01, F10 * F10 + F11 * F11, F00 * F10 + F01 * F11
     m, h = 0.5 * (a + b), 0.5 * (a - b)
-    x = np.hypot(h, c) / m
-    small = x < 1e-6
-    xs = np.where(small, 1.0, x)
-    beta = 0.5 * np.where(small, 1.0 + x * x / 3.0, np.arctanh(np.minimum(xs, 1 - 1e-16)) / xs) / m
+    beta = 0.5 * _atanh_over_x(np.hypot(h, c) / m) / m
     half_log_det = 0.5 * np.log(F00 * F11 - F01 * F10)
     return half_log_det + beta * h, half_log_det - beta * h, beta * c
+
+
+def _atanh_over_x(x: np.ndarray) -> np.ndarray:
+    """``atanh(x) / x`` of the relative half-spread ``x`` >= 0 of two eigenvalues, its series
+    ``1 + x^2 / 3`` below 1e-6 (equal eigenvalues: the limit 1), ``x`` kept below 1: the
+    divided difference of ``ln`` that :func:`log_b`'s derivative and :func:`log_stretch` use."""
+    small = x < 1e-6
+    xs = np.where(small, 1.0, x)
+    return np.where(small, 1.0 + x * x / 3.0, np.arctanh(np.minimum(xs, 1 - 1e-16)) / xs)
 
 
 def _outer22(A: np.ndarray, c: np.ndarray) -> np.ndarray:
