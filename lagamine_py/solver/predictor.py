@@ -154,22 +154,20 @@ def _grown(new: np.ndarray, old: np.ndarray, x: np.ndarray, reach: float) -> np.
 def _spacing(x: np.ndarray) -> float:
     """The largest distance from a point of ``x`` (g, 2) to its nearest other point: how far
     apart neighbours along the surface are (the chain's step)."""
-    far = 0.0
-    block = max(1, 2_000_000 // len(x))
-    for s in range(0, len(x), block):
-        d2 = ((x[s:s + block, None, :] - x[None, :, :]) ** 2).sum(axis=2)
-        d2[np.arange(d2.shape[0]), np.arange(s, s + d2.shape[0])] = np.inf
-        far = max(far, float(np.sqrt(d2.min(axis=1)).max()))
-    return far
+    return float(_nearest(x, x, others=True)[0].max())
 
 
-def _nearest(points: np.ndarray, to: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _nearest(points: np.ndarray, to: np.ndarray,
+             others: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Distance from each of ``points`` (n, 2) to the nearest of ``to`` (m, 2), and its index;
-    in blocks of rows so that memory stays O(m) per row block."""
+    ``others``: ``to`` is ``points`` itself, and each point's nearest *other* point is meant.
+    In blocks of rows so that memory stays O(m) per row block."""
     dist, index = np.empty(len(points)), np.empty(len(points), np.int64)
     block = max(1, 2_000_000 // max(len(to), 1))
     for s in range(0, len(points), block):
         d2 = ((points[s:s + block, None, :] - to[None, :, :]) ** 2).sum(axis=2)
+        if others:
+            d2[np.arange(d2.shape[0]), np.arange(s, s + d2.shape[0])] = np.inf
         index[s:s + block] = np.argmin(d2, axis=1)
         dist[s:s + block] = np.sqrt(d2[np.arange(d2.shape[0]), index[s:s + block]])
     return dist, index

@@ -469,7 +469,7 @@ class Controller:
 
     def _front_predictor(self, front, last, dt, controls) -> FrontPredictor:
         """The slip points predicted for the next increment from the fronts' motion over the
-        last one (``front``: per contact group (x0, statuses before, after); none at a step
+        last one (``front``: per contact group (x0, state codes before, after, tau); none at a step
         start or with EXTRAPOLATION=NONE, as the displacement predictor)."""
         holds = {}
         if front is not None and last is not None and controls["EXTRAPOLATION"] == "LINEAR":
