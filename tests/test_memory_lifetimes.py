@@ -1,0 +1,58 @@
+"""What a run does not hold while it factorises (issue 17 item 5): arrays that the
+factorisation does not need are released before it, checked by weak references on whole runs
+of the main job and on the solver objects themselves.  Each test fails when the array it names
+is kept (the mutations of docs/performance.md, "Memory, branch `memory3`")."""
+from __future__ import annotations
+
+import weakref
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lagamine_py.deck import load_deck
+from lagamine_py.solver import linear, run
+from lagamine_py.solver import steps as steps_mod
+
+DECK = Path(__file__).resolve().parents[1] / "decks" / "press_slide.dat"
+
+
+def _solid_arrays(problem, states):
+    """The arrays of the solid groups' states (each evaluation makes new ones)."""
+    return [a for kind, st in zip(problem.kinds, states) if kind == "solid"
+            for a in st.values() if isinstance(a, np.ndarray)]
+
+
+@pytest.mark.parametrize("energy", [False, True])
+def test_states_two_commits_old_are_not_alive_at_a_factorisation(tmp_path, monkeypatch, energy):
+    """The committed states a commit replaces are released by the next increment's
+    factorisations: the controller keeps the previous states only from the commit to the
+    hand-out that reads them (the energy balance), and not at all without it."""
+    text = DECK.read_text()
+    if energy:
+        text = text.replace("*END STEP", "*OUTPUT, WRITERS=CONTACT/ENERGY\n*END STEP")
+    deck = tmp_path / "deck.dat"
+    deck.write_text(text)
+    model = load_deck(deck)
+    assert steps_mod.tracks_energy(model) == energy
+    replaced = []            # weak refs to the solid arrays of states replaced by a commit
+    alive = []               # at each factorisation: how many of them are alive
+    commit = steps_mod.Controller._commit
+
+    def spy_commit(self, conv, loads, free):
+        if self.total_increments > 0:          # the initial states: not a commit's
+            replaced.extend(weakref.ref(a) for a in _solid_arrays(self.problem, self.states))
+        commit(self, conv, loads, free)
+
+    factor = linear.SpluSolver.factor
+
+    def spy_factor(self, A):
+        alive.append(sum(r() is not None for r in replaced))
+        factor(self, A)
+
+    monkeypatch.setattr(steps_mod.Controller, "_commit", spy_commit)
+    monkeypatch.setattr(linear.SpluSolver, "factor", spy_factor)
+    outcome = run(model, tmp_path / "out")
+    assert outcome.status == 0, outcome.message
+    assert len(replaced) >= 3 * 10 and len(alive) >= 20     # ten commits and more
+    assert alive == [0] * len(alive)
