@@ -56,3 +56,31 @@ def test_states_two_commits_old_are_not_alive_at_a_factorisation(tmp_path, monke
     assert outcome.status == 0, outcome.message
     assert len(replaced) >= 3 * 10 and len(alive) >= 20     # ten commits and more
     assert alive == [0] * len(alive)
+
+
+def test_the_last_increments_start_arrays_are_released_before_the_next_are_made(monkeypatch):
+    """``SolidElement._kernel_start`` drops its cached start arrays before the kernel makes the
+    next increment's: never two sets alive (33 MB each at 51k Q8)."""
+    from lagamine_py import kernels
+    from lagamine_py.elements.quad import Q8PlaneStrain as Q8PE
+    from test_kernel_twins import kernel_laws, solid_setup
+
+    nk = kernels.module("solid")
+    if nk is None:
+        pytest.skip("numba is not installed: no kernel start arrays")
+    group, state, _, u_old = solid_setup(Q8PE, kernel_laws()["ELASTIC"])
+    u_old = np.ascontiguousarray(u_old, float)
+    eps_e = np.ascontiguousarray(state["eps_e"], float)
+    refs, alive = [], []
+    start_group = nk.start_group
+
+    def spy(*args):
+        alive.append(sum(r() is not None for r in refs))
+        return start_group(*args)
+
+    monkeypatch.setattr(nk, "start_group", spy)
+    for k in range(3):
+        old, bad = group._kernel_start(u_old + 1e-3 * k, eps_e)
+        refs += [weakref.ref(old), weakref.ref(bad)]
+        del old, bad
+    assert alive == [0, 0, 0]
