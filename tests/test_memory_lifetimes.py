@@ -13,6 +13,7 @@ import pytest
 from lagamine_py.deck import load_deck
 from lagamine_py.solver import linear, run
 from lagamine_py.solver import steps as steps_mod
+from lagamine_py.solver.pattern import Pattern
 
 DECK = Path(__file__).resolve().parents[1] / "decks" / "press_slide.dat"
 
@@ -84,3 +85,76 @@ def test_the_last_increments_start_arrays_are_released_before_the_next_are_made(
         refs += [weakref.ref(old), weakref.ref(bad)]
         del old, bad
     assert alive == [0, 0, 0]
+
+
+@pytest.mark.parametrize("block", [7, 64, 1 << 16])
+@pytest.mark.parametrize("constrained", [[], [0], [59], [0, 1, 7, 30, 59], list(range(20, 40))])
+def test_kff_in_place_is_the_gather_bit_for_bit(monkeypatch, block, constrained):
+    """``kff(data, in_place=True)``: K_ff's values in the head of ``data`` are ``data[ff]``
+    (the gather into a new array) bit for bit, with blocks smaller than, about and larger
+    than the pattern, and constrained DOFs first, last, scattered, in a run or none; the
+    entries left out are what :meth:`FreeDofs.rest` took before, and ``join`` gives the
+    full data back."""
+    monkeypatch.setattr(linear.FreeDofs, "COMPACT_BLOCK", block)
+    rng = np.random.default_rng(len(constrained) + block)
+    pat = Pattern(60, [rng.choice(60, size=(25, 6), replace=True)])
+    free = linear.FreeDofs(pat, np.array(constrained, int))
+    data = rng.standard_normal(pat.nnz) * 10.0 ** rng.integers(-300, 300, pat.nnz)
+    ref = free.kff(data.copy())
+    rest = free.rest(data)
+    original = data.copy()
+    A = free.kff(data, in_place=True)
+    if A.data.size > data.size // 2:       # (scipy copies a view of less than half its base)
+        assert np.shares_memory(A.data, data) and A.data.ctypes.data == data.ctypes.data
+    assert A.data.tobytes() == ref.data.tobytes()
+    assert np.shares_memory(A.indices, free.ff_indices)
+    assert np.shares_memory(A.indptr, free.ff_indptr)
+    assert free.join(A.data, rest).tobytes() == original.tobytes()
+
+
+def test_kff_in_place_allocates_no_array_of_the_tangents_size(monkeypatch):
+    """The in-place gather's temporaries are a block's, not K_ff's (traced allocations)."""
+    import tracemalloc
+    monkeypatch.setattr(linear.FreeDofs, "COMPACT_BLOCK", 4096)
+    rng = np.random.default_rng(5)
+    n = 6000
+    pat = Pattern(n, [rng.choice(n, size=(4000, 16), replace=True)])
+    free = linear.FreeDofs(pat, np.arange(0, n, 97))
+    data = rng.standard_normal(pat.nnz)
+    size = free.ff_indices.size * 8
+    assert size > 20 * free.COMPACT_BLOCK * 8
+    for in_place, low, high in ((False, size, 10 * size), (True, 0, size / 10)):
+        copy = data.copy()
+        tracemalloc.start()
+        A = free.kff(copy, in_place=in_place)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert low <= peak <= high, (in_place, peak, size)
+        del A
+
+
+def test_newton_factorises_k_ff_in_the_evaluations_own_array(tmp_path, monkeypatch):
+    """In a whole run every K_ff factorised is the head of an evaluation's tangent array (the
+    in-place gather), and no other evaluation's tangent is alive then."""
+    from lagamine_py.solver import problem as problem_mod
+    refs, seen = [], []
+    evaluate = problem_mod.Problem.evaluate
+
+    def spy_evaluate(self, *a, **k):
+        ev = evaluate(self, *a, **k)
+        if ev.data is not None:
+            refs.append(weakref.ref(ev.data))
+        return ev
+
+    factor = linear.SpluSolver.factor
+
+    def spy_factor(self, A):
+        alive = [r() for r in refs if r() is not None]
+        seen.append((len(alive), sum(np.shares_memory(a, A.data) for a in alive)))
+        factor(self, A)
+
+    monkeypatch.setattr(problem_mod.Problem, "evaluate", spy_evaluate)
+    monkeypatch.setattr(linear.SpluSolver, "factor", spy_factor)
+    outcome = run(load_deck(DECK), tmp_path / "out")
+    assert outcome.status == 0, outcome.message
+    assert len(seen) >= 20 and seen == [(1, 1)] * len(seen)

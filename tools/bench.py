@@ -196,8 +196,8 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
     timers.wrap(problem.pattern, "group_vector", "scatter")
     orig_kff = FreeDofs.kff
 
-    def kff(self, data):
-        return timers.call("reduce", orig_kff, self, data)
+    def kff(self, data, *a, **k):
+        return timers.call("reduce", orig_kff, self, data, *a, **k)
     FreeDofs.kff = kff
     # what the solvers did, recorded as numbers: a list of the solver objects would keep the
     # step-1 solver and its factor alive through step 2 (the peak memory then measured the
