@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from lagamine_py.deck import load_deck
 from lagamine_py.solver import linear, run
@@ -158,3 +159,31 @@ def test_newton_factorises_k_ff_in_the_evaluations_own_array(tmp_path, monkeypat
     outcome = run(load_deck(DECK), tmp_path / "out")
     assert outcome.status == 0, outcome.message
     assert len(seen) >= 20 and seen == [(1, 1)] * len(seen)
+
+
+def _transpose_permutation(A):
+    """Reference: the position of each entry's transpose, from scipy's transpose of the entry
+    numbers (what PARDISO's symmetry test held as int32 before)."""
+    T = sp.csr_matrix((np.arange(A.nnz, dtype=float), A.indices, A.indptr), shape=A.shape)
+    T = T.T.tocsr()
+    T.sort_indices()
+    return T.data.astype(np.int64)
+
+
+@pytest.mark.parametrize("element_dofs, offset_type", [(6, np.uint8), (300, np.uint16)])
+def test_pardiso_symmetry_test_keeps_one_byte_offsets_not_the_permutation(element_dofs,
+                                                                           offset_type):
+    """The symmetry test's map to transposed entries is an offset in the partner row, one byte
+    an entry while rows are at most 256 long (two beyond), and it gives the transpose
+    permutation exactly (scipy's, by the entry numbers)."""
+    rng = np.random.default_rng(element_dofs)
+    n = 400
+    pat = Pattern(n, [np.array([rng.choice(n, element_dofs, replace=False) for _ in range(60)])])
+    A = pat.matrix(rng.standard_normal(pat.nnz))
+    offsets = linear._transpose_offsets(A)
+    assert offsets.dtype == offset_type and offsets.nbytes == A.nnz * np.dtype(offset_type).itemsize
+    perm = A.indptr[A.indices].astype(np.int64) + offsets
+    np.testing.assert_array_equal(perm, _transpose_permutation(A))
+    assert np.diff(A.indptr).max() > 256 or offset_type is np.uint8
+    nonsym = sp.csr_matrix((np.ones(3), [1, 2, 0], [0, 2, 2, 3]), shape=(3, 3))
+    assert linear._transpose_offsets(nonsym) is None          # (0,1) has no (1,0)
