@@ -394,18 +394,24 @@ class PardisoSolver(LinearSolver):
         n, step = d.size, self.SYM_CHUNK
         starts = list(range(0, n, step))
         first = min(self._asym_block, len(starts) - 1)
+        where = np.empty(min(step, n), self._struct[0].dtype)     # a block's buffers
+        diff = np.empty(min(step, n))
         for a in starts[first:] + starts[:first]:
             b = min(a + step, n)
-            if np.abs(d[a:b] - d[self._transposed(a, b)]).max() > tol:
+            t = self._transposed(a, b, where[:b - a])
+            v = np.take(d, t, out=diff[:b - a])
+            np.subtract(d[a:b], v, out=v)
+            if np.abs(v, out=v).max() > tol:
                 self._asym_block = a // step
                 return False
         return True
 
-    def _transposed(self, a: int, b: int) -> np.ndarray:
+    def _transposed(self, a: int, b: int, out: np.ndarray | None = None) -> np.ndarray:
         """Where the transposes of the entries ``a:b`` of the analysed structure are: entry
         ``(i, j)``'s is in row ``j``, at its offset there (:func:`_transpose_offsets`)."""
         indptr, indices = self._struct
-        return indptr[indices[a:b]] + self._toffset[a:b]
+        out = np.take(indptr, indices[a:b], out=out)
+        return np.add(out, self._toffset[a:b], out=out, casting="unsafe")
 
     # -- PARDISO calls -----------------------------------------------------------------
     def _pardiso(self, phase: int, data, ia, ja, b=None, x=None) -> None:
