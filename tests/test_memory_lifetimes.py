@@ -187,3 +187,134 @@ def test_pardiso_symmetry_test_keeps_one_byte_offsets_not_the_permutation(elemen
     assert np.diff(A.indptr).max() > 256 or offset_type is np.uint8
     nonsym = sp.csr_matrix((np.ones(3), [1, 2, 0], [0, 2, 2, 3]), shape=(3, 3))
     assert linear._transpose_offsets(nonsym) is None          # (0,1) has no (1,0)
+
+
+needs_pardiso = pytest.mark.skipif(not linear.pardiso_available(),
+                                   reason="MKL PARDISO cannot be loaded (optional extra 'pardiso')")
+
+
+def _nonsym(n=300, seed=0):
+    rng = np.random.default_rng(seed)
+    A = sp.random(n, n, density=0.02, random_state=rng, format="csr")
+    A = (A + A.T + sp.diags(4.0 + rng.random(n))).tocsr()       # structurally symmetric
+    A.sort_indices()
+    A.data += 0.1 * rng.standard_normal(A.nnz)                    # values not
+    return A
+
+
+def _same_structure(A, seed):
+    rng = np.random.default_rng(seed)
+    return sp.csr_matrix((A.data * (1.0 + 0.05 * rng.standard_normal(A.nnz)), A.indices,
+                          A.indptr), shape=A.shape)
+
+
+@needs_pardiso
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_pardiso_lets_the_factorised_matrix_go_and_solves_the_same(symmetric):
+    """``hold_matrix(None)`` after a solve: the factorised K_ff is no longer held (weak
+    reference), and the solves on the factor that follow, with another matrix of the structure
+    handed (``hold_matrix(A2)``), give bit for bit the solutions of a solver that kept it --
+    PARDISO reads its factor only: even NaN values in place of the matrix change nothing."""
+    A1 = _nonsym()
+    if symmetric:
+        A1 = ((A1 + A1.T) * 0.5).tocsr()
+        A1.sort_indices()
+    A2 = _same_structure(A1, 1)
+    b = np.random.default_rng(2).standard_normal(A1.shape[0])
+    kept = linear.PardisoSolver()
+    kept.factor(A1.copy())
+    p = linear.PardisoSolver()
+    p.factor(A1)
+    assert p.mtype == (-2 if symmetric else 11) and p.iparm[13] == 0
+    first = p.solve(b)
+    assert first.tobytes() == kept.solve(b).tobytes()
+    ref = weakref.ref(A1.data)
+    p.hold_matrix(None)
+    del A1
+    assert ref() is None                               # nothing holds the factorised K_ff
+    p.hold_matrix(A2)
+    for seed in (3, 4):
+        c = np.random.default_rng(seed).standard_normal(A2.shape[0])
+        assert p.solve(c).tobytes() == kept.solve(c).tobytes()
+    if not symmetric:
+        p._data = np.full_like(p._data, np.nan)          # not read: the same solution
+        assert p.solve(b).tobytes() == first.tobytes()
+    p.hold_matrix(None)
+    with pytest.raises(RuntimeError) if not symmetric else _nothing():
+        p.solve(b)                                     # no matrix handed: said, not guessed
+
+
+class _nothing:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+@needs_pardiso
+def test_pardiso_keeps_the_matrix_of_a_factor_with_perturbed_pivots():
+    """A factorisation that perturbed pivots (a singular matrix: a free-free chain of springs)
+    keeps its matrix: its solves refine against it and its residual guard needs it."""
+    n = 40
+    L = sp.diags([-np.ones(n - 1), 2.0 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1]).tolil()
+    L[0, 0] = L[n - 1, n - 1] = 1.0
+    L = L.tocsr()
+    for p in (linear.PardisoSolver(), linear.PardisoSolver(symmetric=False)):
+        p.factor(L)
+        assert p.iparm[13] > 0
+        p.hold_matrix(None)
+        assert p._A is L and p._data is not None
+        with pytest.raises(linear.SingularMatrixError):
+            p.solve(np.ones(n))                        # the guard, against the matrix kept
+
+
+def _pardiso_run(tmp_path, name, monkeypatch, hold=True):
+    """The main job on PARDISO with the factor reused (KRYLOVDOFS=0: its 866 DOFs are below
+    the default's 5 000); ``hold=False``: the solver keeps its matrix (``hold_matrix`` does
+    nothing), as before.  Returns (u at the end, contact totals, factorisations, alive) with
+    ``alive`` the factorised K_ff still held at each evaluation that follows a solve."""
+    from lagamine_py.solver import problem as problem_mod
+    from lagamine_py.results import RunResults
+    text = DECK.read_text()
+    for kw in ("*DLOAD", "*BOUNDARY"):
+        text = text.replace(kw, f"*CONTROLS\nSOLVER=PARDISO, KRYLOVDOFS=0\n{kw}")
+    deck = tmp_path / f"{name}.dat"
+    deck.write_text(text)
+    factored, alive = [], []
+    factor, evaluate = linear.PardisoSolver.factor, problem_mod.Problem.evaluate
+
+    def spy_factor(self, A):
+        factored.append(weakref.ref(A.data if A.data.base is None else A.data.base))
+        factor(self, A)
+
+    def spy_evaluate(self, *a, **k):
+        alive.append(sum(r() is not None for r in factored))
+        return evaluate(self, *a, **k)
+
+    monkeypatch.setattr(linear.PardisoSolver, "factor", spy_factor)
+    monkeypatch.setattr(problem_mod.Problem, "evaluate", spy_evaluate)
+    if not hold:
+        monkeypatch.setattr(linear.PardisoSolver, "hold_matrix", lambda self, A: None)
+    outcome = run(load_deck(deck), tmp_path / name)
+    monkeypatch.undo()
+    assert outcome.status == 0, outcome.message
+    res = RunResults(tmp_path / name)
+    u = np.loadtxt(tmp_path / name / "displacements.csv", delimiter=",", skiprows=1)
+    return u, res.table("contact_totals.csv"), len(factored), alive
+
+
+@needs_pardiso
+def test_a_run_that_lets_the_matrix_go_is_the_run_that_keeps_it(tmp_path, monkeypatch):
+    """The main job on PARDISO with GMRES on the old factor: letting the factorised K_ff go
+    after each solve gives the same factorisations and bit for bit the same displacements and
+    contact totals as keeping it; no factorised K_ff is alive at any evaluation (one was, the
+    solver's, at every evaluation after the first solve)."""
+    u1, t1, f1, alive1 = _pardiso_run(tmp_path, "let_go", monkeypatch)
+    u0, t0, f0, alive0 = _pardiso_run(tmp_path, "kept", monkeypatch, hold=False)
+    assert f1 == f0 and f1 >= 5
+    assert u1.tobytes() == u0.tobytes()
+    for col in ("P", "T"):
+        assert np.asarray(t1[col]).tobytes() == np.asarray(t0[col]).tobytes()
+    assert max(alive1) == 0
+    assert max(alive0) == 1

@@ -169,6 +169,16 @@ class LinearSolver(Plugin):
     def solve(self, b: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    def hold_matrix(self, A: sp.csr_matrix | None) -> None:
+        """What the solves on the factor in hand read beside it
+        (:class:`~lagamine_py.solver.reuse.FactorReuse` calls this).
+
+        ``None``: after a solve, the factorised matrix's values need not be held any more: the
+        factor stays, and later solves on it are the preconditioner of GMRES, which checks its
+        own residual.  ``A``: before those solves, the matrix GMRES works on (``K_ff`` of a later
+        iteration, the factorised structure), to read in place of the one let go.  A solver
+        whose solves read only its factor (SuperLU) does nothing: the default."""
+
 
 class SpluSolver(LinearSolver):
     """SuperLU (scipy splu) with the MMD_AT_PLUS_A ordering."""
@@ -482,6 +492,11 @@ class PardisoSolver(LinearSolver):
             self._release()
             raise SingularMatrixError(_singular_dofs(A), f"PARDISO: {exc}") from None
 
+    def _suspect_dofs(self) -> np.ndarray:
+        """The DOFs a failed solve names: by SuperLU on the factorised matrix, none when it was
+        let go (:meth:`hold_matrix`: GMRES then gives up on the old factor)."""
+        return _no_dofs() if self._A is None else _singular_dofs(self._A)
+
     def _set_iparm(self) -> None:
         """PARDISO's defaults for the matrix type (``pardisoinit``, then ``iparm[0] = 1``: the
         values are ours), with two changes:
@@ -507,15 +522,37 @@ class PardisoSolver(LinearSolver):
         if self.TWO_LEVEL:
             self.iparm[23] = 10
 
+    def hold_matrix(self, A: sp.csr_matrix | None) -> None:
+        """See :meth:`LinearSolver.hold_matrix`.  ``None``: the factorised ``K_ff`` (77 MB at
+        309k DOFs, alive through the next evaluation beside the factor otherwise) is let go when
+        the factorisation perturbed no pivot (``iparm[13] == 0``): PARDISO then refines no
+        solve (``iparm[7] = 0``) and reads only its factor; in the symmetric mode the upper
+        triangle handed to it stays (a copy).  ``A``: a non-symmetric solve hands PARDISO
+        ``A``'s values as its matrix argument (a valid array of the factorised structure; not
+        read without refinement).  The residual guard of :meth:`solve` checks a solve against
+        the factorised matrix only: GMRES checks its own."""
+        if A is None:
+            if self.mtype and self.iparm[13] == 0:
+                self._A = None
+                if self.mtype == 11:
+                    self._data = None
+        elif self._data is None and self.mtype == 11:
+            self._data = np.ascontiguousarray(A.data, dtype=np.float64)
+
     def solve(self, b: np.ndarray) -> np.ndarray:
         b = np.array(b, dtype=np.float64, order="F")
         x = np.zeros_like(b)
+        if self._data is None:
+            raise RuntimeError("PARDISO: a solve on a factor whose matrix was let go, with no "
+                               "matrix handed (hold_matrix)")
         try:
             self._pardiso(33, self._data, self._ia, self._ja, b, x)
         except _PardisoError as exc:
-            raise SingularMatrixError(_singular_dofs(self._A), f"PARDISO: {exc}") from None
+            raise SingularMatrixError(self._suspect_dofs(), f"PARDISO: {exc}") from None
         if not np.all(np.isfinite(x)):
-            raise SingularMatrixError(_singular_dofs(self._A), "PARDISO returned a non-finite solution")
+            raise SingularMatrixError(self._suspect_dofs(), "PARDISO returned a non-finite solution")
+        if self._A is None:                 # a preconditioner's solve: GMRES checks it
+            return x
         # PARDISO perturbs zero pivots instead of failing: a singular matrix comes back
         # "solved" with a large residual.  One product with A (cheap next to the factor) tells.
         # (Not only when iparm[13] reports perturbed pivots: a singular symmetric tangent's
@@ -548,6 +585,10 @@ def _transpose_offsets(A) -> np.ndarray | None:
     del T
     offsets -= A.indptr[A.indices]
     return offsets.astype(otype)
+
+
+def _no_dofs() -> np.ndarray:
+    return np.zeros(0, np.int64)
 
 
 def _same_buffer(a: np.ndarray, b: np.ndarray) -> bool:
@@ -598,6 +639,10 @@ class AutoSolver(LinearSolver):
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self.impl.solve(b)
+
+    def hold_matrix(self, A: sp.csr_matrix | None) -> None:
+        if self.impl is not None:
+            self.impl.hold_matrix(A)
 
 
 def make_solver(name: str) -> LinearSolver:
