@@ -318,3 +318,35 @@ def test_a_run_that_lets_the_matrix_go_is_the_run_that_keeps_it(tmp_path, monkey
         assert np.asarray(t1[col]).tobytes() == np.asarray(t0[col]).tobytes()
     assert max(alive1) == 0
     assert max(alive0) == 1
+
+
+@pytest.mark.parametrize("rtol", [1e-8, 1e-300])
+def test_newton_holds_no_earlier_evaluation_while_it_evaluates(rtol):
+    """At every evaluation Newton asks for -- the iterations, the energy-converged one, and the
+    review of held values with the free law (evaluated twice when it fails) -- no evaluation
+    it received earlier is alive: their tangents (77 MB) and states (33 MB at 309k DOFs) were
+    alive beside the next one in the review (``rtol`` 1e-300: converged in energy)."""
+    from lagamine_py.elements.base import StepContext
+    from lagamine_py.solver.linear import SpluSolver
+    from lagamine_py.solver.newton import Settings, solve_increment
+    from test_solver_fakes import GROUND
+    from test_solver_newton import HeldSprings, HoldUntilReviewed, setup
+
+    problem, free = setup([HeldSprings([[GROUND, 0], [GROUND, 1]], 2.0)], 1, [])
+    refs, alive = [], []
+    evaluate = problem.evaluate
+
+    def spy(*args, **kw):
+        alive.append(sum(r() is not None for r in refs))
+        ev = evaluate(*args, **kw)
+        refs.append(weakref.ref(ev))
+        return ev
+
+    problem.evaluate = spy
+    watch = HoldUntilReviewed()
+    f_ext = np.array([3.0, 1.0])
+    conv = solve_increment(problem, SpluSolver(), free, np.zeros(2), problem.init_states(),
+                           StepContext(), np.zeros(0), f_ext, Settings(rtol=rtol),
+                           observers=(watch,))
+    assert watch.settled == 1 and conv.u == pytest.approx(f_ext / 2.0, rel=1e-14)
+    assert len(alive) >= 5 and alive == [0] * len(alive)

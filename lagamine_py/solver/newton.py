@@ -199,6 +199,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged", k, rel)
                 return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
+            ev = None               # not alive through the review's evaluations
             done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
                                       scale, settings.rtol, history, k, solves)
             if done is not None:
@@ -231,6 +232,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
         elif energy <= settings.etol * energy0:
             # converged in energy: take this last (tiny) correction, states consistent with it
             u = u + du
+            ev = None               # its states freed before the next ones are computed
             ev = problem.evaluate(u, u_old, states, ctx_k, False)
             R = ev.f_int - f_ext
             rel = float(np.linalg.norm(R[free.free])) / scale
@@ -240,6 +242,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
                 return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
             # held values: the increment's own context must give the same (energy-converged)
             # residual
+            ev = None
             done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
                                       scale, max(settings.rtol, rel * (1.0 + 1e-6)), history,
                                       k + 1, solves)
@@ -340,6 +343,7 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
     ctx_k = watch.settle(ctx, ev.states,
                          f"{held} disagree with the free law at convergence (|R|/F = {rel:.3e} "
                          f"with the free law)", history + [rel])
+    ev = None                       # (its tangent and states) not alive through the next one
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
 
