@@ -14,7 +14,7 @@ import scipy.sparse.linalg as spla
 
 from lagamine_py.elements.base import StepContext
 from lagamine_py.solver import steps as steps_mod
-from lagamine_py.solver.linear import FreeDofs, SpluSolver
+from lagamine_py.solver.linear import FreeDofs, LinearSolver, SpluSolver
 from lagamine_py.solver.newton import Settings, solve_increment
 from lagamine_py.solver.reuse import FactorReuse, forcing, gmres_right
 
@@ -44,7 +44,7 @@ def _low_rank_change(A, rank, seed=1):
     return (A + sp.csr_matrix(U @ V.T)).tocsr()
 
 
-class Counting:
+class Counting(LinearSolver):
     """A SuperLU solver whose factorisations and back-substitutions are counted."""
 
     def __init__(self):

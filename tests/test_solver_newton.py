@@ -271,7 +271,10 @@ class _LifetimeSolver(SpluSolver):
         self.alive_at_factor = []
 
     def factor(self, A):
-        self.alive_at_factor.append(sum(r() is not None for r in self.refs))
+        # the evaluation whose array K_ff's values were moved into (kff(in_place=True)) is
+        # K_ff itself: not counted
+        self.alive_at_factor.append(sum(r() is not None and not np.shares_memory(r(), A.data)
+                                        for r in self.refs))
         super().factor(A)
 
 

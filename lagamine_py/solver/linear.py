@@ -79,6 +79,11 @@ class FreeDofs:
         self.ff_indptr = np.zeros(self.nfree + 1, itype)
         np.cumsum(np.bincount(new_index[rows[self.ff]], minlength=self.nfree), out=self.ff_indptr[1:])
         self.not_ff = np.flatnonzero(~self.ff)       # the other entries: few (constrained DOFs)
+        # the in-place gather (kff(in_place=True)) by blocks: where each block's K_ff entries go
+        starts = np.arange(0, self.ff.size, self.COMPACT_BLOCK)
+        counts = np.add.reduceat(self.ff, starts, dtype=np.int64) if starts.size else np.zeros(0, np.int64)
+        self._block_dst = np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.int64)
+        self._block_whole = counts == np.diff(np.append(starts, self.ff.size))
         self.ff_diag = np.flatnonzero(self.ff & (rows == cols))
         self.diag_dof = rows[self.ff_diag]
         # K_fc: entries coupling a free row to a constrained column
@@ -86,15 +91,41 @@ class FreeDofs:
         self.fc_row = new_index[rows[self.fc]]
         self.fc_col = cols[self.fc]
 
-    def kff(self, data: np.ndarray) -> sp.csr_matrix:
+    #: entries per block of the in-place gather (its temporaries are a block's)
+    COMPACT_BLOCK = 1 << 16
+
+    def kff(self, data: np.ndarray, in_place: bool = False) -> sp.csr_matrix:
         """``K_ff`` as CSR from the full CSR ``data``: new values, the structure arrays
         ``ff_indices``/``ff_indptr`` themselves (sorted, no duplicates: flagged so, not
-        re-checked)."""
-        A = sp.csr_matrix((data[self.ff], self.ff_indices, self.ff_indptr),
+        re-checked).
+
+        ``in_place``: the values are moved to the head of ``data`` itself, which is overwritten
+        (take :meth:`rest` first), and ``K_ff``'s data is a view of that head: no second array
+        of the tangent's size beside the full one (77 MB at 309k DOFs, while the solver holds
+        its factor and the last ``K_ff``).  The same values, bit for bit."""
+        values = self._compact(data) if in_place else data[self.ff]
+        A = sp.csr_matrix((values, self.ff_indices, self.ff_indptr),
                           shape=(self.nfree, self.nfree), copy=False)
         A.has_sorted_indices = True
         A.has_canonical_format = True
         return A
+
+    def _compact(self, data: np.ndarray) -> np.ndarray:
+        """``data[self.ff]`` written over the head of ``data`` block by block, returned as a
+        view.  A block's entries land at or before its start (``_block_dst``), so the blocks
+        still to be read are never overwritten; a block whose entries all stay in place is
+        skipped."""
+        step = self.COMPACT_BLOCK
+        for i, (dst, whole) in enumerate(zip(self._block_dst.tolist(), self._block_whole.tolist())):
+            a = i * step
+            b = min(a + step, data.size)
+            if whole:
+                if dst != a:
+                    data[dst:dst + b - a] = data[a:b]
+            else:
+                v = data[a:b][self.ff[a:b]]
+                data[dst:dst + v.size] = v
+        return data[:self.ff_indices.size]
 
     def rest(self, data: np.ndarray) -> np.ndarray:
         """The entries of the full CSR ``data`` that ``K_ff`` leaves out (those of constrained
@@ -137,6 +168,16 @@ class LinearSolver(Plugin):
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         raise NotImplementedError
+
+    def hold_matrix(self, A: sp.csr_matrix | None) -> None:
+        """What the solves on the factor in hand read beside it
+        (:class:`~lagamine_py.solver.reuse.FactorReuse` calls this).
+
+        ``None``: after a solve, the factorised matrix's values need not be held any more: the
+        factor stays, and later solves on it are the preconditioner of GMRES, which checks its
+        own residual.  ``A``: before those solves, the matrix GMRES works on (``K_ff`` of a later
+        iteration, the factorised structure), to read in place of the one let go.  A solver
+        whose solves read only its factor (SuperLU) does nothing: the default."""
 
 
 class SpluSolver(LinearSolver):
@@ -322,18 +363,7 @@ class PardisoSolver(LinearSolver):
             self._empty_rows = _suspects(A)
         else:
             self._empty_rows = None
-        # transpose permutation: data[tperm] is the data of A^T in A's CSR order (structurally
-        # symmetric patterns only, which element patterns are); the entry numbers carried as
-        # the matrix's data in the index type (float64 doubled this transient: 0.15 GB at 309k)
-        itype = index_dtype(A.nnz)
-        T = sp.csr_matrix((np.arange(A.nnz, dtype=itype), A.indices, A.indptr),
-                          shape=A.shape).T.tocsr()
-        T.sort_indices()
-        if np.array_equal(T.indptr, A.indptr) and np.array_equal(T.indices, A.indices):
-            self._tperm = T.data.astype(itype, copy=False)
-        else:
-            self._tperm = None
-        del T
+        self._toffset = _transpose_offsets(A)
         # zero-based indexing (iparm[34] = 1): A's own index arrays, no one-based copies
         self._ia_full = np.ascontiguousarray(A.indptr, dtype=np.int32)
         self._ja_full = np.ascontiguousarray(A.indices, dtype=np.int32)
@@ -363,7 +393,7 @@ class PardisoSolver(LinearSolver):
         contact DOFs only, which stay where they are from one iteration to the next, so the
         usual non-symmetric verdict costs one block instead of three temporaries of ``nnz``
         (the whole test was 11 % of the run at 309k DOFs).  A symmetric matrix is read whole."""
-        if self._tperm is None:
+        if self._toffset is None:
             return False
         d = A.data
         if not d.size:
@@ -374,12 +404,24 @@ class PardisoSolver(LinearSolver):
         n, step = d.size, self.SYM_CHUNK
         starts = list(range(0, n, step))
         first = min(self._asym_block, len(starts) - 1)
+        where = np.empty(min(step, n), self._struct[0].dtype)     # a block's buffers
+        diff = np.empty(min(step, n))
         for a in starts[first:] + starts[:first]:
             b = min(a + step, n)
-            if np.abs(d[a:b] - d[self._tperm[a:b]]).max() > tol:
+            t = self._transposed(a, b, where[:b - a])
+            v = np.take(d, t, out=diff[:b - a])
+            np.subtract(d[a:b], v, out=v)
+            if np.abs(v, out=v).max() > tol:
                 self._asym_block = a // step
                 return False
         return True
+
+    def _transposed(self, a: int, b: int, out: np.ndarray | None = None) -> np.ndarray:
+        """Where the transposes of the entries ``a:b`` of the analysed structure are: entry
+        ``(i, j)``'s is in row ``j``, at its offset there (:func:`_transpose_offsets`)."""
+        indptr, indices = self._struct
+        out = np.take(indptr, indices[a:b], out=out)
+        return np.add(out, self._toffset[a:b], out=out, casting="unsafe")
 
     # -- PARDISO calls -----------------------------------------------------------------
     def _pardiso(self, phase: int, data, ia, ja, b=None, x=None) -> None:
@@ -450,6 +492,11 @@ class PardisoSolver(LinearSolver):
             self._release()
             raise SingularMatrixError(_singular_dofs(A), f"PARDISO: {exc}") from None
 
+    def _suspect_dofs(self) -> np.ndarray:
+        """The DOFs a failed solve names: by SuperLU on the factorised matrix, none when it was
+        let go (:meth:`hold_matrix`: GMRES then gives up on the old factor)."""
+        return _no_dofs() if self._A is None else _singular_dofs(self._A)
+
     def _set_iparm(self) -> None:
         """PARDISO's defaults for the matrix type (``pardisoinit``, then ``iparm[0] = 1``: the
         values are ours), with two changes:
@@ -475,15 +522,37 @@ class PardisoSolver(LinearSolver):
         if self.TWO_LEVEL:
             self.iparm[23] = 10
 
+    def hold_matrix(self, A: sp.csr_matrix | None) -> None:
+        """See :meth:`LinearSolver.hold_matrix`.  ``None``: the factorised ``K_ff`` (77 MB at
+        309k DOFs, alive through the next evaluation beside the factor otherwise) is let go when
+        the factorisation perturbed no pivot (``iparm[13] == 0``): PARDISO then refines no
+        solve (``iparm[7] = 0``) and reads only its factor; in the symmetric mode the upper
+        triangle handed to it stays (a copy).  ``A``: a non-symmetric solve hands PARDISO
+        ``A``'s values as its matrix argument (a valid array of the factorised structure; not
+        read without refinement).  The residual guard of :meth:`solve` checks a solve against
+        the factorised matrix only: GMRES checks its own."""
+        if A is None:
+            if self.mtype and self.iparm[13] == 0:
+                self._A = None
+                if self.mtype == 11:
+                    self._data = None
+        elif self._data is None and self.mtype == 11:
+            self._data = np.ascontiguousarray(A.data, dtype=np.float64)
+
     def solve(self, b: np.ndarray) -> np.ndarray:
         b = np.array(b, dtype=np.float64, order="F")
         x = np.zeros_like(b)
+        if self._data is None:
+            raise RuntimeError("PARDISO: a solve on a factor whose matrix was let go, with no "
+                               "matrix handed (hold_matrix)")
         try:
             self._pardiso(33, self._data, self._ia, self._ja, b, x)
         except _PardisoError as exc:
-            raise SingularMatrixError(_singular_dofs(self._A), f"PARDISO: {exc}") from None
+            raise SingularMatrixError(self._suspect_dofs(), f"PARDISO: {exc}") from None
         if not np.all(np.isfinite(x)):
-            raise SingularMatrixError(_singular_dofs(self._A), "PARDISO returned a non-finite solution")
+            raise SingularMatrixError(self._suspect_dofs(), "PARDISO returned a non-finite solution")
+        if self._A is None:                 # a preconditioner's solve: GMRES checks it
+            return x
         # PARDISO perturbs zero pivots instead of failing: a singular matrix comes back
         # "solved" with a large residual.  One product with A (cheap next to the factor) tells.
         # (Not only when iparm[13] reports perturbed pivots: a singular symmetric tangent's
@@ -493,6 +562,33 @@ class PardisoSolver(LinearSolver):
             raise SingularMatrixError(_singular_dofs(self._A), "PARDISO: residual of the solve too "
                                       "large (perturbed zero pivots)")
         return x
+
+
+def _transpose_offsets(A) -> np.ndarray | None:
+    """For each entry ``(i, j)`` of the CSR structure of ``A`` (sorted), the offset of entry
+    ``(j, i)`` in row ``j``; None when the structure is not symmetric.
+
+    ``indptr[indices] + offsets`` is the transpose permutation (``data[...]`` is ``A^T``'s data
+    in ``A``'s CSR order).  Offsets are below the longest row: one byte an entry where rows are
+    shorter than 256 entries (a 2D element mesh's are ~50), where the permutation itself took
+    four (38 MB against 10 MB at 309k DOFs).  The permutation is made once, carried as the data
+    of the transposed matrix in the index type (float64 doubled this transient)."""
+    itype = index_dtype(A.nnz)
+    T = sp.csr_matrix((np.arange(A.nnz, dtype=itype), A.indices, A.indptr),
+                      shape=A.shape).T.tocsr()
+    T.sort_indices()
+    if not (np.array_equal(T.indptr, A.indptr) and np.array_equal(T.indices, A.indices)):
+        return None
+    longest = int(np.diff(A.indptr).max()) if A.shape[0] else 0
+    otype = np.uint8 if longest <= 256 else np.uint16 if longest <= 65536 else itype
+    offsets = T.data
+    del T
+    offsets -= A.indptr[A.indices]
+    return offsets.astype(otype)
+
+
+def _no_dofs() -> np.ndarray:
+    return np.zeros(0, np.int64)
 
 
 def _same_buffer(a: np.ndarray, b: np.ndarray) -> bool:
@@ -543,6 +639,10 @@ class AutoSolver(LinearSolver):
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self.impl.solve(b)
+
+    def hold_matrix(self, A: sp.csr_matrix | None) -> None:
+        if self.impl is not None:
+            self.impl.hold_matrix(A)
 
 
 def make_solver(name: str) -> LinearSolver:

@@ -199,6 +199,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged", k, rel)
                 return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
+            ev = None               # not alive through the review's evaluations
             done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
                                       scale, settings.rtol, history, k, solves)
             if done is not None:
@@ -231,6 +232,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
         elif energy <= settings.etol * energy0:
             # converged in energy: take this last (tiny) correction, states consistent with it
             u = u + du
+            ev = None               # its states freed before the next ones are computed
             ev = problem.evaluate(u, u_old, states, ctx_k, False)
             R = ev.f_int - f_ext
             rel = float(np.linalg.norm(R[free.free])) / scale
@@ -240,6 +242,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
                 return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
             # held values: the increment's own context must give the same (energy-converged)
             # residual
+            ev = None
             done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
                                       scale, max(settings.rtol, rel * (1.0 + 1e-6)), history,
                                       k + 1, solves)
@@ -340,6 +343,7 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
     ctx_k = watch.settle(ctx, ev.states,
                          f"{held} disagree with the free law at convergence (|R|/F = {rel:.3e} "
                          f"with the free law)", history + [rel])
+    ev = None                       # (its tangent and states) not alive through the next one
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
 
@@ -348,12 +352,14 @@ def _linear_solve(solves, free, ev, rhs, atol=0.0):
     evaluation ``ev``; a singular ``K_ff`` raises SingularMatrixError naming the DOFs (in
     global numbering) that nothing restrains, with the full tangent data as ``matrix``.
 
-    The full tangent is released (``ev.data`` set to None) once ``K_ff`` and the entries it
-    leaves out (:meth:`FreeDofs.rest`, the rows and columns of constrained DOFs: small) are
-    taken from it: it is not alive through the factorisation (77 MB at 309k DOFs); the
-    diagnosis gets it back bit for bit (:meth:`FreeDofs.join`)."""
-    A = free.kff(ev.data)
+    The full tangent becomes ``K_ff``: the entries it leaves out (:meth:`FreeDofs.rest`, the
+    rows and columns of constrained DOFs: small) are taken, then ``K_ff``'s values are moved
+    to the head of the tangent's own array (``kff(in_place=True)``) and ``ev.data`` is set to
+    None: no second array of the tangent's size (77 MB at 309k DOFs) beside the solver's factor
+    and last ``K_ff``; the diagnosis gets the full data back bit for bit
+    (:meth:`FreeDofs.join`)."""
     rest = free.rest(ev.data)
+    A = free.kff(ev.data, in_place=True)
     ev.data = None
     try:
         return solves.solve(free, A, rhs, atol)

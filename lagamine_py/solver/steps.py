@@ -208,7 +208,10 @@ class Controller:
         self.time_reached = 0.0           # total time of the last converged increment
         self.nodal = 2 * len(model.node_ids)      # the rotations of reference nodes follow
         self.energy = EnergyAccount(n) if tracks_energy(model) else None
-        self._previous = None             # (u, states) before the last commit (energy)
+        # (u, states) before the last commit, from the commit to its hand-out, and only when
+        # the energy balance reads it: a whole set of solid states (33 MB at 51k Q8) otherwise
+        # alive through the next increment's factorisations
+        self._previous = None
         self._solvers: dict = {}          # the linear solver of the last step, by name
         self._solves: FactorReuse | None = None   # and its factor, kept between solves
         self._last_energy: dict = {}      # the energy terms of the last hand-out
@@ -546,7 +549,7 @@ class Controller:
         return conv
 
     def _commit(self, conv, loads, free) -> None:
-        self._previous = (self.u, self.states)
+        self._previous = (self.u, self.states) if self.energy is not None else None
         self.u = conv.u
         self.states = conv.states
         self.reaction = np.zeros_like(self.u)
@@ -569,6 +572,7 @@ class Controller:
         energy = {}
         if self.energy is not None:
             u_old, states_old = self._previous
+            self._previous = None             # read once: not held through the next increment
             F = self.energy.applied_forces(self.problem, self.u, ctx, conv.f_ext, self.reaction)
             energy = self.energy.commit(self.problem, u_old, self.u, states_old, self.states, F,
                                         contacts, tool_states)
