@@ -1,6 +1,7 @@
 """Restart data: what a run needs to resume after its last converged increment.
 
-Saved with ``np.savez`` after every converged increment, in ``OUT/restart.npz``: the
+Saved as ``np.savez`` writes it (the bytes patched into a template of the same arrays:
+:class:`NpzTemplate`) after every converged increment, in ``OUT/restart.npz``: the
 displacement, the committed state of every group, the reactions, the step index, the time within
 the step, the next time increment, the increment counters, the current step's resolved loads
 (:class:`~lagamine_py.solver.loads.StepLoads`) and the deck: its absolute path, the digest of its
@@ -9,7 +10,8 @@ expanded text and the parameter values given on the command line
 refused (:class:`RestartMismatch`, exit status 2): it would go on from the state of another model.
 
 Written atomically (a temporary file renamed over the previous one: a process killed at any
-moment leaves the old file or the new one) and not fsynced: the rename is what protects against
+moment leaves the old file or the new one; the old one's blocks freed on a background thread,
+:func:`lagamine_py.core.outdir.replace`) and not fsynced: the rename is what protects against
 the death of the process (SIGKILL, a crash), whose written pages the OS keeps; an fsync would
 only add durability against a crash of the machine, which the CSV and VTU files the restart
 point must agree with do not have either, and it cost ~6 ms of wall time a save on this
@@ -20,7 +22,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import struct
 import zipfile
 import zlib
@@ -29,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.exits import EXIT_DECK, EXIT_OTHER
-from ..core.outdir import DeckIdentity
+from ..core.outdir import DeckIdentity, replace
 
 FILE = "restart.npz"
 #: restart data up to this size is assembled in memory and written in one call: ``np.savez``
@@ -58,7 +59,7 @@ def save(outdir: Path, data: dict[str, np.ndarray]) -> None:
             fh.write(npz_bytes(arrays))
         else:
             np.savez(fh, **arrays)
-    os.replace(tmp, outdir / FILE)
+    replace(tmp, outdir / FILE)             # the old file unlinked on a background thread
 
 
 class NpzTemplate:
