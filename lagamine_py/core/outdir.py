@@ -34,7 +34,7 @@ output is renamed to ``.lagamine-retired-<pid>-<n>-<name>`` (no block is freed),
 to be replaced is first hard-linked to such a name (its blocks stay in use through the rename),
 and a background thread unlinks the retired names while the run computes.  :meth:`Claim.release`
 waits for it (:func:`wait_retired`): a finished run leaves none behind; a killed one may, and
-the next run of the directory (a restart too) retires them again.
+the next claim of the directory (a restart's too) has the thread unlink them.
 This module is file-system machinery only: it imports nothing of lagamine_py.
 """
 from __future__ import annotations
@@ -133,7 +133,7 @@ class _Reaper:
         while (path := self.queue.get()) is not None:
             try:
                 os.unlink(path)
-            except OSError:             # gone already; the next claim retires what stays
+            except OSError:             # gone already; the next claim unlinks what stays
                 pass
 
     def wait(self) -> None:
