@@ -51,9 +51,11 @@ def kill_after_restart_point(step: int):
 
 def kill_before_restart_point(step: int):
     """At the end of ``step``: every writer took the last increment, the restart point is not
-    yet replaced (killed between writing its temporary file and renaming it)."""
+    yet replaced (killed between writing its temporary file and renaming it; the old file
+    already hard-linked to a retired name, core.outdir.replace: the resumed run unlinks it)."""
+    from lagamine_py.core import outdir
     from lagamine_py.solver import restart
-    real = restart.os.replace
+    real = outdir.os.replace
 
     def replace(src, dst):
         if Path(dst).name == restart.FILE:
@@ -63,7 +65,7 @@ def kill_before_restart_point(step: int):
             if end:
                 die()
         return real(src, dst)
-    restart.os.replace = replace
+    outdir.os.replace = replace
 
 
 def kill_writing_displacements(step: int):

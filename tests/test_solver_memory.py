@@ -32,7 +32,9 @@ def _matrix(n=400, seed=0):
 
 def test_splu_drops_its_last_factor_and_trims_before_the_next(monkeypatch):
     """At the call of SuperLU for the second factorisation no earlier factor is held and the
-    heap was trimmed just before; the solutions are those of a fresh solver."""
+    heap was trimmed just before (matrices past ``TRIM_FILL``); the solutions are those of a
+    fresh solver."""
+    monkeypatch.setattr(linear, "TRIM_FILL", 0)
     seen = []
     real_splu, real_trim = linear.splu, linear.return_free_heap
     s = SpluSolver()
@@ -55,6 +57,28 @@ def test_splu_drops_its_last_factor_and_trims_before_the_next(monkeypatch):
     fresh = SpluSolver()
     fresh.factor(A2)
     np.testing.assert_array_equal(s.solve(b), fresh.solve(b))
+
+
+def test_splu_trims_only_past_the_fill_threshold(monkeypatch):
+    """A small system (the main job's 849 DOFs, a 74k-entry factor) is factorised without a
+    trim: it handed back pages the next factorisation faulted in again.  The trim comes back
+    once the last factor, or the matrix to factorise, holds ``TRIM_FILL`` entries."""
+    trims = []
+    monkeypatch.setattr(linear, "return_free_heap", lambda: trims.append(1))
+    A = _matrix(seed=1)
+    s = SpluSolver()
+    s.factor(A)
+    s.factor(A)
+    assert linear.TRIM_FILL > s.lu.nnz > A.nnz and trims == []     # the default: no trim
+    monkeypatch.setattr(linear, "TRIM_FILL", s.lu.nnz)             # the last factor reaches it
+    s.factor(A)
+    assert trims == [1]
+    monkeypatch.setattr(linear, "TRIM_FILL", A.nnz)                # the matrix alone reaches it
+    SpluSolver().factor(A)
+    assert trims == [1, 1]
+    monkeypatch.setattr(linear, "TRIM_FILL", A.nnz + 1)            # neither: a new solver
+    SpluSolver().factor(A)
+    assert trims == [1, 1]
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux") or linear._malloc_trim() is None,

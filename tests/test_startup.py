@@ -23,6 +23,7 @@ NOT_LOADED = (
     "threadpoolctl",                        # OPENBLAS_NUM_THREADS set before numpy loads
     "xml.sax", "urllib.request",            # the VTU attribute quoting is ours
     "importlib.metadata", "email",          # registry.scan_entry_points reads entry_points.txt
+    "socket",                               # the lock's and record's host: platform.node()
     # numpy's f2py and testing stay lazy modules (core.lazy_modules): never executed
     "numpy.f2py.crackfortran", "numpy.testing._private.utils",
 )
@@ -106,3 +107,12 @@ def test_deferred_numpy_submodules_load_at_first_use():
     this one has numpy.testing loaded)."""
     res = subprocess.run([sys.executable, "-c", _LAZY_SCRIPT], capture_output=True, text=True)
     assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
+
+
+def test_the_host_name_is_the_one_socket_gives():
+    """The lock and the record name the host by ``platform.node()`` (no ``socket`` import):
+    the name ``socket.gethostname()`` gives, which locks written before recorded."""
+    import socket
+
+    from lagamine_py.core import outdir
+    assert outdir._host() == socket.gethostname()

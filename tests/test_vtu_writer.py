@@ -94,6 +94,28 @@ def test_meshio_reads_back_what_was_written(tmp_path):
     np.testing.assert_array_equal(np.concatenate(m.cell_data["element_id"]), [7, 9, 11])
 
 
+def test_a_small_file_in_one_write_is_the_streamed_file(tmp_path, monkeypatch):
+    """A file under one piece is joined and written at once; the same grid streamed piece by
+    piece (pieces of 48 bytes: many per array) gives the same bytes."""
+    grid = _grid()
+    vtk_out._write_vtu(grid, tmp_path / "once.vtu")
+    writes = []
+
+    class Spy(vtk_out._Pieces):
+        def write(self, b):
+            writes.append(len(b))
+            return super().write(b)
+    monkeypatch.setattr(vtk_out, "_Pieces", Spy)
+    vtk_out._write_vtu(grid, tmp_path / "once_again.vtu")
+    assert writes                                       # the small file's way
+    monkeypatch.setattr(vtk_out, "_PIECE", 48)
+    writes.clear()
+    vtk_out._write_vtu(grid, tmp_path / "streamed.vtu")
+    assert not writes                                   # streamed
+    once = (tmp_path / "once.vtu").read_bytes()
+    assert once == (tmp_path / "streamed.vtu").read_bytes() == (tmp_path / "once_again.vtu").read_bytes()
+
+
 def test_an_empty_grid_is_a_valid_file(tmp_path):
     """No cells, no points (a contact pair without points): VTK opens it (meshio 5 fails on
     any VTU without cells, VTK's own writer's included)."""

@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import base64
 import re
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -248,13 +249,18 @@ def _appended_size(nbytes: int) -> int:
 def _write_appended(fh, values: np.ndarray) -> None:
     """The appended data of one array (its UInt32 byte count, then its bytes, base64) written
     piece by piece: what ``base64.b64encode(count + values.tobytes())`` gives, without a copy
-    of the array or its whole text in memory."""
+    of the array or its whole text in memory.  ``fh``: anything with ``write``."""
     raw = values.reshape(-1).view(np.uint8)
-    head = np.uint32(raw.size).astype("<u4").tobytes()
+    head = struct.pack("<I", raw.size)
     first = _PIECE - len(head)
     fh.write(base64.b64encode(head + raw[:first].tobytes()))
     for a in range(first, raw.size, _PIECE):
         fh.write(base64.b64encode(raw[a:a + _PIECE]))
+
+
+class _Pieces(list):
+    """The pieces of a small file, written at once (``write`` is ``append``)."""
+    write = list.append
 
 
 def _write_vtu(grid: _Grid, path: Path) -> None:
@@ -312,11 +318,25 @@ def _write_vtu(grid: _Grid, path: Path) -> None:
     array("types", grid.types, "        ")
     xml += ["      </Cells>", "    </Piece>", "  </UnstructuredGrid>",
             '  <AppendedData encoding="base64">', "   _"]
+    if offset <= _PIECE:
+        # a small file (every state of the main job): its pieces joined and written in one
+        # call without a buffer (a 768 KB buffer per file was allocated, and mapped, to be
+        # filled a few KB deep)
+        fh = _Pieces()
+        _write_vtu_text(fh, xml, arrays)
+        with open(path, "wb", buffering=0) as raw:
+            raw.write(b"".join(fh))
+        return
     with open(path, "wb", buffering=_PIECE) as fh:     # small arrays: one write per piece
-        fh.write("\n".join(xml).encode())
-        for values in arrays:
-            _write_appended(fh, values)
-        fh.write(b"\n  </AppendedData>\n</VTKFile>\n")
+        _write_vtu_text(fh, xml, arrays)
+
+
+def _write_vtu_text(fh, xml: list[str], arrays: list[np.ndarray]) -> None:
+    """The XML, then every array's appended data, then the end of the file, into ``fh``."""
+    fh.write("\n".join(xml).encode())
+    for values in arrays:
+        _write_appended(fh, values)
+    fh.write(b"\n  </AppendedData>\n</VTKFile>\n")
 
 
 def read_pvd(path: Path) -> list[tuple[float, int, str, str]]:

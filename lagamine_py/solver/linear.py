@@ -43,6 +43,12 @@ AUTO_PARDISO_DOFS = 8_000
 AUTO_SPLU_FILL = 1_500_000
 PIVOT_RTOL = 1e-12          # |pivot| below this times max |K_ii| counts as zero
 SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a singular A
+#: SPLU trims the heap (:func:`return_free_heap`) before a factorisation only when the last
+#: factor or the matrix holds this many entries: below, the freed blocks are a few MB, and the
+#: trim handed pages back that the next factorisation and evaluation faulted in again (the
+#: main job, 849 DOFs and 74k factor entries: 0.3 ms a call in ``malloc_trim``, ~70 ms of
+#: its 0.46 s of increments in all; docs/performance.md)
+TRIM_FILL = 200_000
 
 
 class FreeDofs:
@@ -183,6 +189,8 @@ class LinearSolver(Plugin):
 class SpluSolver(LinearSolver):
     """SuperLU (scipy splu) with the MMD_AT_PLUS_A ordering."""
 
+    lu = None
+
     def factor(self, A: sp.csr_matrix) -> None:
         # The CSR arrays of A are the CSC arrays of A^T: factor A^T without any conversion
         # and solve with trans="T".
@@ -190,9 +198,12 @@ class SpluSolver(LinearSolver):
         scale = np.abs(A.diagonal()).max() if A.shape[0] else 0.0
         # the last factor goes before the next is computed, and the heap's free pages with it:
         # SuperLU grows its work arrays by reallocation, which left the heap holding 20-70 MB
-        # of freed blocks at 5-7k DOFs (peaks 123-197 MB from one run to the next, 40x20-48x24)
+        # of freed blocks at 5-7k DOFs (peaks 123-197 MB from one run to the next, 40x20-48x24);
+        # a small factor's few MB are not worth the trim (TRIM_FILL)
+        fill = max(A.nnz, self.lu.nnz if self.lu is not None else 0)
         self.lu = None
-        return_free_heap()
+        if fill >= TRIM_FILL:
+            return_free_heap()
         try:
             self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
         except RuntimeError:                # "Factor is exactly singular"
