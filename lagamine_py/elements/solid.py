@@ -101,14 +101,18 @@ def _log_b_value(b2: np.ndarray):
     return E, (lam, v0, v1, P0, P1)
 
 
-def _log_b_derivative(lam, v0, v1, P0, P1):
-    """``C`` (..., 2, 2, 2, 2) of :func:`log_b` from the parts of :func:`_log_b_value`."""
+def _log_b_derivative(lam, v0, v1, P0, P1, rows=None):
+    """``C`` (..., 2, 2, 2, 2) of :func:`log_b` from the parts of :func:`_log_b_value`; with
+    ``rows`` (r,) indices into the flattened ij, ``C``'s rows ij = ``rows`` only, as
+    (..., r, 2, 2) (what the NLGEOM tangent reads: no copy of the whole ``C`` to pick them)."""
     m = 0.5 * (lam[..., 0] + lam[..., 1])
     ratio = _atanh_over_x(0.5 * (lam[..., 0] - lam[..., 1]) / m)
     S = v0[..., :, None] * v1[..., None, :]
     S = S + np.swapaxes(S, -1, -2)
-    return _outer22(P0, 0.5 / lam[..., 0]) + _outer22(P1, 0.5 / lam[..., 1]) \
-        + _outer22(S, 0.25 * ratio / m)
+    C = _outer22(P0, 0.5 / lam[..., 0], rows)
+    C += _outer22(P1, 0.5 / lam[..., 1], rows)
+    C += _outer22(S, 0.25 * ratio / m, rows)
+    return C
 
 
 def log_stretch(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -136,9 +140,14 @@ def _atanh_over_x(x: np.ndarray) -> np.ndarray:
     return np.where(small, 1.0 + x * x / 3.0, np.arctanh(np.minimum(xs, 1 - 1e-16)) / xs)
 
 
-def _outer22(A: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """``c A_ij A_mn``: (..., 2, 2), (...) -> (..., 2, 2, 2, 2)."""
-    return (c[..., None, None] * A)[..., :, :, None, None] * A[..., None, None, :, :]
+def _outer22(A: np.ndarray, c: np.ndarray, rows=None) -> np.ndarray:
+    """``c A_ij A_mn``: (..., 2, 2), (...) -> (..., 2, 2, 2, 2); with ``rows`` (r,) the rows
+    ij = ``rows`` of the flattened ij only, (..., r, 2, 2) (the same products)."""
+    cA = c[..., None, None] * A
+    if rows is None:
+        return cA[..., :, :, None, None] * A[..., None, None, :, :]
+    cA = cA.reshape(cA.shape[:-2] + (4,))[..., rows]
+    return cA[..., :, None, None] * A[..., None, :, :]
 
 
 # --------------------------------------------------------------------------------------------
@@ -271,6 +280,15 @@ class SolidElement(Element):
         if self.axisymmetric:
             B[:, :, 2, :, 0] = self.N / r[..., None]
         return B.reshape(ne, nq, 4, 2 * na)
+
+    def _operator_t(self, dNdx: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """``G^T`` (e, d, q s) of the strain operator :meth:`_operator`: a view of its (e, q, s, d)
+        array, the layout in which the per-element products of the force and the tangent read
+        it (the einsum of ``_weighted_force`` and ``_weighted_product`` read it so: a copy in
+        another layout would change their rounding), formed once for both."""
+        G = self._operator(dNdx, r)
+        ne, nq, ns, nd = G.shape
+        return np.swapaxes(G.reshape(ne, nq * ns, nd), 1, 2)
 
     def _failure(self, mask: np.ndarray, what: str, state, tangent: bool) -> GroupResult:
         self._last_failure = (what, mask)
@@ -451,22 +469,22 @@ class SolidElement(Element):
             return new_state
 
         dNdx = self.dNdX @ _inv2(F, det2)                                 # spatial gradients
-        G = self._operator(dNdx, r)
-        f = _weighted_force(G, tau, self.w0)
+        Gt = self._operator_t(dNdx, r)
+        f = _weighted_force_t(Gt, tau, self.w0)
         if not tangent:
             return GroupResult(f, None, new_state)
         if tangent is LATER:             # G again from dNdx and r: nothing (e, q, 4, d) kept
             return GroupResult(f, None, new_state, later=lambda: self._nlgeom_tangent(
                 log_parts, b2, dNdx, r, None, D, tau))
-        return GroupResult(f, self._nlgeom_tangent(log_parts, b2, dNdx, r, G, D, tau), new_state)
+        return GroupResult(f, self._nlgeom_tangent(log_parts, b2, dNdx, r, Gt, D, tau), new_state)
 
-    def _nlgeom_tangent(self, log_parts, b2, dNdx, r, G, D, tau):
+    def _nlgeom_tangent(self, log_parts, b2, dNdx, r, Gt, D, tau):
         """The NLGEOM tangent (e, 2 nen, 2 nen) at the point :meth:`_large_strain` computed
-        (``G`` None: formed again from ``dNdx`` and ``r``)."""
+        (``Gt`` = :meth:`_operator_t`; None: formed again from ``dNdx`` and ``r``)."""
         ne, nq, na = len(dNdx), self.nq, self.nen
-        if G is None:
-            G = self._operator(dNdx, r)
-        C = _log_b_derivative(*log_parts)
+        if Gt is None:
+            Gt = self._operator_t(dNdx, r)
+        C = _log_b_derivative(*log_parts, rows=_IJ_OF_ROW)                 # (e, q, s, k, n)
 
         # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du, i.e.
         # dE_ij / du_bk = 2 sum_n C_ijkn h_bn (C symmetric in kn): one (b, n) @ (n, k) product
@@ -476,23 +494,28 @@ class SolidElement(Element):
         # d eps33 = du_r / r in axisymmetry; the factors 2 (and 4 for the engineering shear)
         # are applied to D's columns (powers of two: exact, the same sums as before).
         h = dNdx @ b2                                                     # (e, q, b, n)
-        M = h[:, :, None] @ C.reshape(ne, nq, 4, 2, 2)[:, :, _IJ_OF_ROW]  # (e, q, s, b, k)
+        M = h[:, :, None] @ C                                             # (e, q, s, b, k)
         if self.axisymmetric:
             M[:, :, 2] = 0.0
             M[:, :, 2, :, 0] = self.N / r[..., None]
         scale = _ROW_SCALE_AXI if self.axisymmetric else _ROW_SCALE
-        K = _weighted_product(G, D * scale, M.reshape(ne, nq, 4, 2 * na), self.w0)
+        K = _weighted_product_t(Gt, D * scale, M.reshape(ne, nq, 4, 2 * na), self.w0)
 
-        # geometric part: d(dN_a/dx_j) = -dN_a/dx_k l_kj, d(N_a / r) = -N_a du_r / r^2
+        # geometric part: d(dN_a/dx_j) = -dN_a/dx_k l_kj, d(N_a / r) = -N_a du_r / r^2,
+        # subtracted from K in place through a transposed view (no negated, transposed copy)
         tau2 = _vec_to_stress2(tau)
         T = dNdx @ tau2                                # (e, q, b, i) = tau_ij dN_b/dx_j
-        Kg = -(np.swapaxes((dNdx * self.w0[..., None, None]).reshape(ne, nq, 2 * na), 1, 2)
-               @ T.reshape(ne, nq, 2 * na))                          # (e, (a k), (b i))
-        Kg = Kg.reshape(ne, na, 2, na, 2).transpose(0, 1, 4, 3, 2).copy()   # (e, a, i, b, k)
-        if self.axisymmetric:
-            Kg[:, :, 0, :, 0] -= np.einsum("eq,qa,qb->eab", self.w0 * tau[..., 2] / r**2,
-                                           self.N, self.N)
-        K += Kg.reshape(ne, 2 * na, 2 * na)
+        Kg = (np.swapaxes((dNdx * self.w0[..., None, None]).reshape(ne, nq, 2 * na), 1, 2)
+              @ T.reshape(ne, nq, 2 * na))                           # (e, (a k), (b i)), negated
+        Kg = Kg.reshape(ne, na, 2, na, 2).transpose(0, 1, 4, 3, 2)   # (e, a, i, b, k) view
+        K5 = K.reshape(ne, na, 2, na, 2)
+        if self.axisymmetric:            # K + (-Kg - hoop), in that order, on the (r, r) entries
+            hoop = np.einsum("eq,qa,qb->eab", self.w0 * tau[..., 2] / r**2, self.N, self.N)
+            rr = K5[:, :, 0, :, 0] + (-Kg[:, :, 0, :, 0] - hoop)
+            K5 -= Kg
+            K5[:, :, 0, :, 0] = rr
+        else:
+            K5 -= Kg
         return K
 
 
@@ -624,6 +647,20 @@ def _weighted_product(A, D, B, w):
     DB = (D * w[..., None, None]) @ B                                   # (e, q, s, f)
     At = np.swapaxes(A, 2, 3).transpose(0, 2, 1, 3).reshape(ne, nd, nq * ns)
     return At @ DB.reshape(ne, nq * ns, B.shape[-1])
+
+
+def _weighted_force_t(At, s, w):
+    """sum_q w A^T s from ``At`` (e, d, q s) (:meth:`SolidElement._operator_t`): one
+    (d, q s) @ (q s, 1) product per element, the one ``_weighted_force``'s einsum makes."""
+    ne, nd, nqs = At.shape
+    return (At @ (s * w[..., None]).reshape(ne, nqs, 1)).reshape(ne, nd)
+
+
+def _weighted_product_t(At, D, B, w):
+    """:func:`_weighted_product` with ``A`` given as ``At`` (e, d, q s)."""
+    ne, nq, ns, nf = B.shape
+    DB = (D * w[..., None, None]) @ B                                   # (e, q, s, f)
+    return At @ DB.reshape(ne, nq * ns, nf)
 
 
 def _vec_to_stress2(s: np.ndarray) -> np.ndarray:
