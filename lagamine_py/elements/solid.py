@@ -44,9 +44,14 @@ def sym_eig2(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     m, h = 0.5 * (a + b), 0.5 * (a - b)
     rho = np.hypot(h, c)
     theta = 0.5 * np.arctan2(c, h)          # tan(2 theta) = 2c / (a - b)
-    ct, st = np.cos(theta), np.sin(theta)
-    lam = np.stack([m + rho, m - rho], axis=-1)
-    V = np.stack([np.stack([ct, -st], axis=-1), np.stack([st, ct], axis=-1)], axis=-2)
+    lam = np.empty(theta.shape + (2,))
+    np.add(m, rho, out=lam[..., 0])
+    np.subtract(m, rho, out=lam[..., 1])
+    V = np.empty(theta.shape + (2, 2))
+    np.cos(theta, out=V[..., 0, 0])
+    np.sin(theta, out=V[..., 1, 0])
+    np.negative(V[..., 1, 0], out=V[..., 0, 1])
+    V[..., 1, 1] = V[..., 0, 0]
     return lam, V
 
 
@@ -410,7 +415,7 @@ class SolidElement(Element):
         ne, nq = self.R0.shape
         # one (2, a) @ (a, q j) product per element rather than q tiny (2, a) @ (a, j) ones
         F = (np.swapaxes(ue, 1, 2) @ self._dNdX_flat()).reshape(ne, 2, nq, 2).swapaxes(1, 2)
-        F = F + np.eye(2)                                                  # (e, q, i, j)
+        F = F + _EYE2                                                      # (e, q, i, j)
         if self.axisymmetric:
             r = self.R0 + np.einsum("qa,ea->eq", self.N, ue[..., 0])
             return F, r / self.R0, r
@@ -460,7 +465,11 @@ class SolidElement(Element):
         b2 = f2 @ bn2 @ np.swapaxes(f2, -1, -2)
         b33 = f33**2 * bn33
         E2, log_parts = _log_b_value(b2)
-        trial = np.stack([E2[..., 0, 0], E2[..., 1, 1], 0.5 * np.log(b33), 2 * E2[..., 0, 1]], -1)
+        trial = np.empty(b33.shape + (4,))
+        trial[..., 0], trial[..., 1] = E2[..., 0, 0], E2[..., 1, 1]
+        np.log(b33, out=trial[..., 2])
+        trial[..., 2] *= 0.5
+        np.multiply(E2[..., 0, 1], 2, out=trial[..., 3])
 
         tau, D, new_law_state, ok = self.law.update(trial, law_state)
         new_state = self._finish_law(ok, new_law_state, tau / J[..., None],
@@ -605,6 +614,8 @@ class SolidElement(Element):
 _IJ_OF_ROW = np.array([0, 3, 2, 1])
 _ROW_SCALE = np.array([2.0, 2.0, 0.0, 4.0])
 _ROW_SCALE_AXI = np.array([2.0, 2.0, 1.0, 4.0])
+
+_EYE2 = np.eye(2)
 
 #: placeholders of the NLGEOM start arrays in small strain (one compiled signature for both)
 _NO_START = (np.empty((0, 0, 9)), np.empty(0, np.int8))
