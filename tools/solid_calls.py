@@ -144,6 +144,12 @@ def c_calls(calls, tangent) -> Counter:
     return count
 
 
+def _kinds(keys) -> list[str]:
+    """The outputs (``now/K``, ``none/f`` ...) of answer keys ``<run>/<call>/<mode>/<output>``."""
+    return sorted({"/".join(k.split("/")[-2:]) if "/state/" not in k
+                   else "/".join(k.split("/")[-3:]) for k in keys})
+
+
 def _bits(a: np.ndarray) -> np.ndarray:
     """The bytes of ``a``: -0.0 is not 0.0, a NaN's payload counts (np.array_equal would not)."""
     return np.ascontiguousarray(a).view(np.uint8) if a.dtype.kind in "fcbiu" else a
@@ -192,7 +198,8 @@ def main(argv=None) -> int:
             ref[k].shape == got[k].shape and ref[k].dtype == got[k].dtype
             and np.array_equal(_bits(ref[k]), _bits(got[k])))]
         print(f"bit for bit against {a.check}: "
-              + ("identical" if not differ else f"{len(differ)} arrays differ: {differ[:8]}"))
+              + ("identical" if not differ else
+                 f"{len(differ)} arrays differ: {differ[:8]}; outputs: {_kinds(differ)}"))
         code = 1 if differ else 0
     from lagamine_py.elements.base import LATER
     for what, (calls, _) in runs.items():

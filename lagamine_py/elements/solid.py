@@ -289,24 +289,34 @@ class SolidElement(Element):
         return self._fill_operator(np.zeros((ne, nq, 4, na, 2)), dNdx, r)
 
     def _fill_operator(self, B: np.ndarray, dNdx: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """:meth:`_operator` written into ``B`` (e, q, 4, a, 2) whose other entries are zero."""
-        ne, nq, na = dNdx.shape[:3]
+        """:meth:`_operator` written into ``B`` (e, q, s, a, 2) whose other entries are zero;
+        ``s`` 4, or 3 in plane strain for the rows 11, 22, 12 only (:data:`_PLANE_ROWS`)."""
+        ne, nq, ns, na = B.shape[:4]
         B[:, :, 0, :, 0] = dNdx[..., 0]
         B[:, :, 1, :, 1] = dNdx[..., 1]
-        B[:, :, 3, :, 0] = dNdx[..., 1]
-        B[:, :, 3, :, 1] = dNdx[..., 0]
+        B[:, :, ns - 1, :, 0] = dNdx[..., 1]
+        B[:, :, ns - 1, :, 1] = dNdx[..., 0]
         if self.axisymmetric:
             B[:, :, 2, :, 0] = self.N / r[..., None]
-        return B.reshape(ne, nq, 4, 2 * na)
+        return B.reshape(ne, nq, ns, 2 * na)
 
-    def _operator_t(self, dNdx: np.ndarray, r: np.ndarray) -> np.ndarray:
+    def _operator_t(self, dNdx: np.ndarray, r: np.ndarray, ns: int = 4) -> np.ndarray:
         """``G^T`` (e, d, q s) of the strain operator :meth:`_operator`: a view of its (e, q, s, d)
         array, the layout in which the per-element products of the force and the tangent read
         it (the einsum of ``_weighted_force`` and ``_weighted_product`` read it so: a copy in
-        another layout would change their rounding), formed once for both."""
-        G = self._fill_operator(self._scratch("G", (len(dNdx), self.nq, 4, self.nen, 2)), dNdx, r)
+        another layout would change their rounding).  ``ns`` 3: the plane-strain tangent's
+        operator without its zero hoop row (:data:`_PLANE_ROWS`), a quarter of the tangent's
+        products left out (their terms were exact zeros: the same sums; the force's product,
+        a matrix-vector one, sums in another grouping when shortened, so it keeps 4 rows)."""
+        G = self._fill_operator(self._scratch(f"G{ns}", (len(dNdx), self.nq, ns, self.nen, 2)),
+                                dNdx, r)
         ne, nq, ns, nd = G.shape
         return np.swapaxes(G.reshape(ne, nq * ns, nd), 1, 2)
+
+    def _rows(self) -> np.ndarray:
+        """The strain 4-vector's rows the NLGEOM products keep: all, or in plane strain
+        :data:`_PLANE_ROWS` (row 33 of the operator is zero there)."""
+        return _ALL_ROWS if self.axisymmetric else _PLANE_ROWS
 
     def _scratch(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
         """A work array of ``shape``, zeros when made, kept for the next call (one pool for the
@@ -513,20 +523,23 @@ class SolidElement(Element):
         if tangent is LATER:             # G again from dNdx and r: nothing (e, q, 4, d) kept
             return GroupResult(f, None, new_state, later=lambda out=None: self._nlgeom_tangent(
                 log_parts, b2, dNdx, r, None, D, tau, out))
+        Gt = Gt if self.axisymmetric else None        # the plane-strain tangent's has 3 rows
         return GroupResult(f, self._nlgeom_tangent(log_parts, b2, dNdx, r, Gt, D, tau, K_out),
                            new_state)
 
     def _nlgeom_tangent(self, log_parts, b2, dNdx, r, Gt, D, tau, out=None):
         """The NLGEOM tangent (e, 2 nen, 2 nen) at the point :meth:`_large_strain` computed
-        (``Gt`` = :meth:`_operator_t`; None: formed again from ``dNdx`` and ``r``), written into
-        ``out`` if given.  Its large temporaries (the operator, ``M``, ``D M``: (e, q, 4, d)
-        each; ``C``, the geometric part) are the group's :meth:`_scratch` arrays."""
+        (``Gt`` = :meth:`_operator_t` of the rows :meth:`_rows`; None: formed from ``dNdx`` and
+        ``r``), into ``out`` if given.  Its large temporaries (the operator, ``M``, ``D M``:
+        (e, q, s, d) each; ``C``, the geometric part) are the group's :meth:`_scratch` arrays."""
         ne, nq, na = len(dNdx), self.nq, self.nen
+        rows = self._rows()
+        ns = len(rows)
         if Gt is None:
-            Gt = self._operator_t(dNdx, r)
-        C = _log_b_derivative(*log_parts, rows=_IJ_OF_ROW,                 # (e, q, s, k, n)
-                              work=(self._scratch("C", (ne, nq, 4, 2, 2)),
-                                    self._scratch("C term", (ne, nq, 4, 2, 2))))
+            Gt = self._operator_t(dNdx, r, ns)
+        C = _log_b_derivative(*log_parts, rows=_IJ_OF_ROW[rows],           # (e, q, s, k, n)
+                              work=(self._scratch("C", (ne, nq, ns, 2, 2)),
+                                    self._scratch("C term", (ne, nq, ns, 2, 2))))
 
         # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du, i.e.
         # dE_ij / du_bk = 2 sum_n C_ijkn h_bn (C symmetric in kn): one (b, n) @ (n, k) product
@@ -536,13 +549,16 @@ class SolidElement(Element):
         # d eps33 = du_r / r in axisymmetry; the factors 2 (and 4 for the engineering shear)
         # are applied to D's columns (powers of two: exact, the same sums as before).
         h = dNdx @ b2                                                     # (e, q, b, n)
-        M = np.matmul(h[:, :, None], C, out=self._scratch("M", (ne, nq, 4, na, 2)))
+        M = np.matmul(h[:, :, None], C, out=self._scratch("M", (ne, nq, ns, na, 2)))
         if self.axisymmetric:
             M[:, :, 2] = 0.0
             M[:, :, 2, :, 0] = self.N / r[..., None]
-        scale = _ROW_SCALE_AXI if self.axisymmetric else _ROW_SCALE
-        K = _weighted_product_t(Gt, D * scale, M.reshape(ne, nq, 4, 2 * na), self.w0,
-                                self._scratch("DB", (ne, nq, 4, 2 * na)), out)
+        if self.axisymmetric:
+            DS = D * _ROW_SCALE_AXI
+        else:                            # rows and columns 11, 22, 12 (column 33's factor is 0)
+            DS = D[:, :, _PLANE_ROWS[:, None], _PLANE_ROWS] * _ROW_SCALE[_PLANE_ROWS]
+        K = _weighted_product_t(Gt, DS, M.reshape(ne, nq, ns, 2 * na), self.w0,
+                                self._scratch("DB", (ne, nq, ns, 2 * na)), out)
 
         # geometric part: d(dN_a/dx_j) = -dN_a/dx_k l_kj, d(N_a / r) = -N_a du_r / r^2,
         # subtracted from K in place through a transposed view (no negated, transposed copy)
@@ -649,6 +665,9 @@ class SolidElement(Element):
 _IJ_OF_ROW = np.array([0, 3, 2, 1])
 _ROW_SCALE = np.array([2.0, 2.0, 0.0, 4.0])
 _ROW_SCALE_AXI = np.array([2.0, 2.0, 1.0, 4.0])
+#: the rows of the strain 4-vector the NLGEOM products keep (plane strain: 33 is zero in G)
+_ALL_ROWS = np.array([0, 1, 2, 3])
+_PLANE_ROWS = np.array([0, 1, 3])
 
 _EYE2 = np.eye(2)
 
