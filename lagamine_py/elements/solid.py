@@ -44,15 +44,26 @@ def sym_eig2(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     m, h = 0.5 * (a + b), 0.5 * (a - b)
     rho = np.hypot(h, c)
     theta = 0.5 * np.arctan2(c, h)          # tan(2 theta) = 2c / (a - b)
-    ct, st = np.cos(theta), np.sin(theta)
-    lam = np.stack([m + rho, m - rho], axis=-1)
-    V = np.stack([np.stack([ct, -st], axis=-1), np.stack([st, ct], axis=-1)], axis=-2)
+    lam = np.empty(theta.shape + (2,))
+    np.add(m, rho, out=lam[..., 0])
+    np.subtract(m, rho, out=lam[..., 1])
+    V = np.empty(theta.shape + (2, 2))
+    np.cos(theta, out=V[..., 0, 0])
+    np.sin(theta, out=V[..., 1, 0])
+    np.negative(V[..., 1, 0], out=V[..., 0, 1])
+    V[..., 1, 1] = V[..., 0, 0]
     return lam, V
 
 
 def _spectral(lam_f: np.ndarray, V: np.ndarray) -> np.ndarray:
-    """sum_k f(lam_k) v_k v_k^T, (..., 2, 2)."""
-    return np.einsum("...ik,...k,...jk->...ij", V, lam_f, V)
+    """sum_k f(lam_k) v_k v_k^T, (..., 2, 2): the einsum ``...ik,...k,...jk->...ij`` it was,
+    written out in its order of operations (``(V_ik f_k) V_jk``, summed onto a zero from k = 0:
+    the ``+ 0.0`` turns a first term -0.0 into 0.0 as the einsum's sum did), 2x cheaper."""
+    Vf = V * lam_f[..., None, :]                                       # V_ik f_k
+    out = Vf[..., :, None, 0] * V[..., None, :, 0]
+    out += 0.0
+    out += Vf[..., :, None, 1] * V[..., None, :, 1]
+    return out
 
 
 def _vec_to_tensor2(v: np.ndarray) -> np.ndarray:
@@ -101,14 +112,20 @@ def _log_b_value(b2: np.ndarray):
     return E, (lam, v0, v1, P0, P1)
 
 
-def _log_b_derivative(lam, v0, v1, P0, P1):
-    """``C`` (..., 2, 2, 2, 2) of :func:`log_b` from the parts of :func:`_log_b_value`."""
+def _log_b_derivative(lam, v0, v1, P0, P1, rows=None, work=None):
+    """``C`` (..., 2, 2, 2, 2) of :func:`log_b` from the parts of :func:`_log_b_value`; with
+    ``rows`` (r,) indices into the flattened ij, ``C``'s rows ij = ``rows`` only, as
+    (..., r, 2, 2) (what the NLGEOM tangent reads: no copy of the whole ``C`` to pick them),
+    then written into ``work[0]`` with ``work[1]`` for the terms if ``work`` is given."""
     m = 0.5 * (lam[..., 0] + lam[..., 1])
     ratio = _atanh_over_x(0.5 * (lam[..., 0] - lam[..., 1]) / m)
     S = v0[..., :, None] * v1[..., None, :]
     S = S + np.swapaxes(S, -1, -2)
-    return _outer22(P0, 0.5 / lam[..., 0]) + _outer22(P1, 0.5 / lam[..., 1]) \
-        + _outer22(S, 0.25 * ratio / m)
+    C, term = (None, None) if work is None else work
+    C = _outer22(P0, 0.5 / lam[..., 0], rows, C)
+    C += _outer22(P1, 0.5 / lam[..., 1], rows, term)
+    C += _outer22(S, 0.25 * ratio / m, rows, term)
+    return C
 
 
 def log_stretch(F: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -136,9 +153,15 @@ def _atanh_over_x(x: np.ndarray) -> np.ndarray:
     return np.where(small, 1.0 + x * x / 3.0, np.arctanh(np.minimum(xs, 1 - 1e-16)) / xs)
 
 
-def _outer22(A: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """``c A_ij A_mn``: (..., 2, 2), (...) -> (..., 2, 2, 2, 2)."""
-    return (c[..., None, None] * A)[..., :, :, None, None] * A[..., None, None, :, :]
+def _outer22(A: np.ndarray, c: np.ndarray, rows=None, out=None) -> np.ndarray:
+    """``c A_ij A_mn``: (..., 2, 2), (...) -> (..., 2, 2, 2, 2); with ``rows`` (r,) the rows
+    ij = ``rows`` of the flattened ij only, (..., r, 2, 2) (the same products), into ``out``
+    if given."""
+    cA = c[..., None, None] * A
+    if rows is None:
+        return np.multiply(cA[..., :, :, None, None], A[..., None, None, :, :], out=out)
+    cA = cA.reshape(cA.shape[:-2] + (4,))[..., rows]
+    return np.multiply(cA[..., :, None, None], A[..., None, :, :], out=out)
 
 
 # --------------------------------------------------------------------------------------------
@@ -263,14 +286,48 @@ class SolidElement(Element):
     def _operator(self, dNdx: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Strain operator (e, q, s, d): rows [d/dx1, d/dx2, hoop u_r/r, shear] of ``dNdx``."""
         ne, nq, na = dNdx.shape[:3]
-        B = np.zeros((ne, nq, 4, na, 2))
+        return self._fill_operator(np.zeros((ne, nq, 4, na, 2)), dNdx, r)
+
+    def _fill_operator(self, B: np.ndarray, dNdx: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """:meth:`_operator` written into ``B`` (e, q, s, a, 2) whose other entries are zero;
+        ``s`` 4, or 3 in plane strain for the rows 11, 22, 12 only (:data:`_PLANE_ROWS`)."""
+        ne, nq, ns, na = B.shape[:4]
         B[:, :, 0, :, 0] = dNdx[..., 0]
         B[:, :, 1, :, 1] = dNdx[..., 1]
-        B[:, :, 3, :, 0] = dNdx[..., 1]
-        B[:, :, 3, :, 1] = dNdx[..., 0]
+        B[:, :, ns - 1, :, 0] = dNdx[..., 1]
+        B[:, :, ns - 1, :, 1] = dNdx[..., 0]
         if self.axisymmetric:
             B[:, :, 2, :, 0] = self.N / r[..., None]
-        return B.reshape(ne, nq, 4, 2 * na)
+        return B.reshape(ne, nq, ns, 2 * na)
+
+    def _operator_t(self, dNdx: np.ndarray, r: np.ndarray, ns: int = 4) -> np.ndarray:
+        """``G^T`` (e, d, q s) of the strain operator :meth:`_operator`: a view of its (e, q, s, d)
+        array, the layout in which the per-element products of the force and the tangent read
+        it (the einsum of ``_weighted_force`` and ``_weighted_product`` read it so: a copy in
+        another layout would change their rounding).  ``ns`` 3: the plane-strain tangent's
+        operator without its zero hoop row (:data:`_PLANE_ROWS`), a quarter of the tangent's
+        products left out (their terms were exact zeros: the same sums; the force's product,
+        a matrix-vector one, sums in another grouping when shortened, so it keeps 4 rows)."""
+        G = self._fill_operator(self._scratch(f"G{ns}", (len(dNdx), self.nq, ns, self.nen, 2)),
+                                dNdx, r)
+        ne, nq, ns, nd = G.shape
+        return np.swapaxes(G.reshape(ne, nq * ns, nd), 1, 2)
+
+    def _rows(self) -> np.ndarray:
+        """The strain 4-vector's rows the NLGEOM products keep: all, or in plane strain
+        :data:`_PLANE_ROWS` (row 33 of the operator is zero there)."""
+        return _ALL_ROWS if self.axisymmetric else _PLANE_ROWS
+
+    def _scratch(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        """A work array of ``shape``, zeros when made, kept for the next call (one pool for the
+        group and its chunk views, computed one after the other): the NLGEOM path's largest
+        temporaries, so that their pages are not handed back to the system and faulted in
+        again at every call (1 300 page faults per call at 800 Q8 without)."""
+        pool = self._cache.setdefault("scratch", {})
+        a = pool.get((name, shape))
+        if a is None:
+            a = pool[(name, shape)] = np.zeros(shape)
+        return a
 
     def _failure(self, mask: np.ndarray, what: str, state, tangent: bool) -> GroupResult:
         self._last_failure = (what, mask)
@@ -301,11 +358,13 @@ class SolidElement(Element):
             return self._compute_block(u_new, u_old, state, ctx, tangent)
         return self._compute_chunked(u_new, u_old, state, ctx, tangent)
 
-    def _compute_block(self, u_new, u_old, state, ctx, tangent):
+    def _compute_block(self, u_new, u_old, state, ctx, tangent, K_out=None):
+        """:meth:`compute` of one block; ``K_out`` (e, nd, nd): where an NLGEOM tangent computed
+        now is written (the group's own K of a chunked computation: no chunk-sized copy)."""
         law_state = {k: state[k] for k in self._law_keys}
         ue_new, ue_old = u_new[self.conn], u_old[self.conn]
         if ctx.nlgeom:
-            return self._large_strain(ue_new, ue_old, state, law_state, tangent)
+            return self._large_strain(ue_new, ue_old, state, law_state, tangent, K_out)
         return self._small_strain(ue_new, ue_old, state, law_state, tangent)
 
     def _chunk_views(self) -> list[tuple[slice, "SolidElement"]]:
@@ -321,7 +380,7 @@ class SolidElement(Element):
                 for name in ("ids", "conn", "dofs", "detJ0", "dNdX", "R0", "w0", "_bad0"):
                     setattr(v, name, getattr(self, name)[sl])
                 v._views = None
-                v._cache = {}
+                v._cache = {"scratch": self._cache.setdefault("scratch", {})}   # one pool
                 views.append((sl, v))
             self._views = views
         return self._views
@@ -335,8 +394,9 @@ class SolidElement(Element):
         new_state: dict[str, np.ndarray] = {}
         failed: dict[str, np.ndarray] = {}
         for sl, view in self._chunk_views():
+            K_sl = K[sl] if now else None
             r = view._compute_block(u_new, u_old, {k: v[sl] for k, v in state.items()}, ctx,
-                                    tangent)
+                                    tangent, K_sl)
             if r.failure:
                 what, mask = view._last_failure
                 failed.setdefault(what, np.zeros(ne, bool))[sl] |= mask
@@ -345,7 +405,8 @@ class SolidElement(Element):
                 continue
             f[sl] = r.f
             if now:
-                K[sl] = r.K
+                if r.K is not K_sl:
+                    K[sl] = r.K
             elif tangent:
                 laters.append((sl, r.later))
             for k, v in r.state.items():
@@ -380,7 +441,7 @@ class SolidElement(Element):
             return new_state
         f = _weighted_force(B, sig, self.w0)
         if tangent is LATER:             # B again from the same numbers: nothing (e, q, 4, d) kept
-            def later():
+            def later(out=None):
                 B = self._operator(self.dNdX, self.R0)
                 return _weighted_product(B, D, B, self.w0)
             return GroupResult(f, None, new_state, later=later)
@@ -392,7 +453,7 @@ class SolidElement(Element):
         ne, nq = self.R0.shape
         # one (2, a) @ (a, q j) product per element rather than q tiny (2, a) @ (a, j) ones
         F = (np.swapaxes(ue, 1, 2) @ self._dNdX_flat()).reshape(ne, 2, nq, 2).swapaxes(1, 2)
-        F = F + np.eye(2)                                                  # (e, q, i, j)
+        F = F + _EYE2                                                      # (e, q, i, j)
         if self.axisymmetric:
             r = self.R0 + np.einsum("qa,ea->eq", self.N, ue[..., 0])
             return F, r / self.R0, r
@@ -426,7 +487,7 @@ class SolidElement(Element):
         self._cache["old"] = old
         return old
 
-    def _large_strain(self, ue_new, ue_old, state, law_state, tangent):
+    def _large_strain(self, ue_new, ue_old, state, law_state, tangent, K_out=None):
         F, F33, r = self._deformation(ue_new)
         F_old_inv, F33_old, bad_old, bn2, bn33 = self._start_of_increment(ue_old,
                                                                           law_state["eps_e"])
@@ -442,7 +503,11 @@ class SolidElement(Element):
         b2 = f2 @ bn2 @ np.swapaxes(f2, -1, -2)
         b33 = f33**2 * bn33
         E2, log_parts = _log_b_value(b2)
-        trial = np.stack([E2[..., 0, 0], E2[..., 1, 1], 0.5 * np.log(b33), 2 * E2[..., 0, 1]], -1)
+        trial = np.empty(b33.shape + (4,))
+        trial[..., 0], trial[..., 1] = E2[..., 0, 0], E2[..., 1, 1]
+        np.log(b33, out=trial[..., 2])
+        trial[..., 2] *= 0.5
+        np.multiply(E2[..., 0, 1], 2, out=trial[..., 3])
 
         tau, D, new_law_state, ok = self.law.update(trial, law_state)
         new_state = self._finish_law(ok, new_law_state, tau / J[..., None],
@@ -451,22 +516,30 @@ class SolidElement(Element):
             return new_state
 
         dNdx = self.dNdX @ _inv2(F, det2)                                 # spatial gradients
-        G = self._operator(dNdx, r)
-        f = _weighted_force(G, tau, self.w0)
+        Gt = self._operator_t(dNdx, r)
+        f = _weighted_force_t(Gt, tau, self.w0)
         if not tangent:
             return GroupResult(f, None, new_state)
         if tangent is LATER:             # G again from dNdx and r: nothing (e, q, 4, d) kept
-            return GroupResult(f, None, new_state, later=lambda: self._nlgeom_tangent(
-                log_parts, b2, dNdx, r, None, D, tau))
-        return GroupResult(f, self._nlgeom_tangent(log_parts, b2, dNdx, r, G, D, tau), new_state)
+            return GroupResult(f, None, new_state, later=lambda out=None: self._nlgeom_tangent(
+                log_parts, b2, dNdx, r, None, D, tau, out))
+        Gt = Gt if self.axisymmetric else None        # the plane-strain tangent's has 3 rows
+        return GroupResult(f, self._nlgeom_tangent(log_parts, b2, dNdx, r, Gt, D, tau, K_out),
+                           new_state)
 
-    def _nlgeom_tangent(self, log_parts, b2, dNdx, r, G, D, tau):
+    def _nlgeom_tangent(self, log_parts, b2, dNdx, r, Gt, D, tau, out=None):
         """The NLGEOM tangent (e, 2 nen, 2 nen) at the point :meth:`_large_strain` computed
-        (``G`` None: formed again from ``dNdx`` and ``r``)."""
+        (``Gt`` = :meth:`_operator_t` of the rows :meth:`_rows`; None: formed from ``dNdx`` and
+        ``r``), into ``out`` if given.  Its large temporaries (the operator, ``M``, ``D M``:
+        (e, q, s, d) each; ``C``, the geometric part) are the group's :meth:`_scratch` arrays."""
         ne, nq, na = len(dNdx), self.nq, self.nen
-        if G is None:
-            G = self._operator(dNdx, r)
-        C = _log_b_derivative(*log_parts)
+        rows = self._rows()
+        ns = len(rows)
+        if Gt is None:
+            Gt = self._operator_t(dNdx, r, ns)
+        C = _log_b_derivative(*log_parts, rows=_IJ_OF_ROW[rows],           # (e, q, s, k, n)
+                              work=(self._scratch("C", (ne, nq, ns, 2, 2)),
+                                    self._scratch("C term", (ne, nq, ns, 2, 2))))
 
         # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du, i.e.
         # dE_ij / du_bk = 2 sum_n C_ijkn h_bn (C symmetric in kn): one (b, n) @ (n, k) product
@@ -476,23 +549,33 @@ class SolidElement(Element):
         # d eps33 = du_r / r in axisymmetry; the factors 2 (and 4 for the engineering shear)
         # are applied to D's columns (powers of two: exact, the same sums as before).
         h = dNdx @ b2                                                     # (e, q, b, n)
-        M = h[:, :, None] @ C.reshape(ne, nq, 4, 2, 2)[:, :, _IJ_OF_ROW]  # (e, q, s, b, k)
+        M = np.matmul(h[:, :, None], C, out=self._scratch("M", (ne, nq, ns, na, 2)))
         if self.axisymmetric:
             M[:, :, 2] = 0.0
             M[:, :, 2, :, 0] = self.N / r[..., None]
-        scale = _ROW_SCALE_AXI if self.axisymmetric else _ROW_SCALE
-        K = _weighted_product(G, D * scale, M.reshape(ne, nq, 4, 2 * na), self.w0)
+        if self.axisymmetric:
+            DS = D * _ROW_SCALE_AXI
+        else:                            # rows and columns 11, 22, 12 (column 33's factor is 0)
+            DS = D[:, :, _PLANE_ROWS[:, None], _PLANE_ROWS] * _ROW_SCALE[_PLANE_ROWS]
+        K = _weighted_product_t(Gt, DS, M.reshape(ne, nq, ns, 2 * na), self.w0,
+                                self._scratch("DB", (ne, nq, ns, 2 * na)), out)
 
-        # geometric part: d(dN_a/dx_j) = -dN_a/dx_k l_kj, d(N_a / r) = -N_a du_r / r^2
+        # geometric part: d(dN_a/dx_j) = -dN_a/dx_k l_kj, d(N_a / r) = -N_a du_r / r^2,
+        # subtracted from K in place through a transposed view (no negated, transposed copy)
         tau2 = _vec_to_stress2(tau)
         T = dNdx @ tau2                                # (e, q, b, i) = tau_ij dN_b/dx_j
-        Kg = -(np.swapaxes((dNdx * self.w0[..., None, None]).reshape(ne, nq, 2 * na), 1, 2)
-               @ T.reshape(ne, nq, 2 * na))                          # (e, (a k), (b i))
-        Kg = Kg.reshape(ne, na, 2, na, 2).transpose(0, 1, 4, 3, 2).copy()   # (e, a, i, b, k)
-        if self.axisymmetric:
-            Kg[:, :, 0, :, 0] -= np.einsum("eq,qa,qb->eab", self.w0 * tau[..., 2] / r**2,
-                                           self.N, self.N)
-        K += Kg.reshape(ne, 2 * na, 2 * na)
+        Kg = np.matmul(np.swapaxes((dNdx * self.w0[..., None, None]).reshape(ne, nq, 2 * na), 1, 2),
+                       T.reshape(ne, nq, 2 * na), out=self._scratch("Kg", (ne, 2 * na, 2 * na)))
+        # Kg: (e, (a k), (b i)), negated
+        Kg = Kg.reshape(ne, na, 2, na, 2).transpose(0, 1, 4, 3, 2)   # (e, a, i, b, k) view
+        K5 = K.reshape(ne, na, 2, na, 2)
+        if self.axisymmetric:            # K + (-Kg - hoop), in that order, on the (r, r) entries
+            hoop = np.einsum("eq,qa,qb->eab", self.w0 * tau[..., 2] / r**2, self.N, self.N)
+            rr = K5[:, :, 0, :, 0] + (-Kg[:, :, 0, :, 0] - hoop)
+            K5 -= Kg
+            K5[:, :, 0, :, 0] = rr
+        else:
+            K5 -= Kg
         return K
 
 
@@ -586,6 +669,11 @@ class SolidElement(Element):
 _IJ_OF_ROW = np.array([0, 3, 2, 1])
 _ROW_SCALE = np.array([2.0, 2.0, 0.0, 4.0])
 _ROW_SCALE_AXI = np.array([2.0, 2.0, 1.0, 4.0])
+#: the rows of the strain 4-vector the NLGEOM products keep (plane strain: 33 is zero in G)
+_ALL_ROWS = np.array([0, 1, 2, 3])
+_PLANE_ROWS = np.array([0, 1, 3])
+
+_EYE2 = np.eye(2)
 
 #: placeholders of the NLGEOM start arrays in small strain (one compiled signature for both)
 _NO_START = (np.empty((0, 0, 9)), np.empty(0, np.int8))
@@ -608,7 +696,10 @@ def _joined(laters, shape):
     def later():
         K = np.empty(shape)
         for sl, fn in laters:
-            K[sl] = fn()
+            view = K[sl]
+            got = fn(view)
+            if got is not view:          # a later that does not write into the view given
+                view[...] = got
         return K
     return later
 
@@ -628,6 +719,21 @@ def _weighted_product(A, D, B, w):
     DB = (D * w[..., None, None]) @ B                                   # (e, q, s, f)
     At = np.swapaxes(A, 2, 3).transpose(0, 2, 1, 3).reshape(ne, nd, nq * ns)
     return At @ DB.reshape(ne, nq * ns, B.shape[-1])
+
+
+def _weighted_force_t(At, s, w):
+    """sum_q w A^T s from ``At`` (e, d, q s) (:meth:`SolidElement._operator_t`): one
+    (d, q s) @ (q s, 1) product per element, the one ``_weighted_force``'s einsum makes."""
+    ne, nd, nqs = At.shape
+    return (At @ (s * w[..., None]).reshape(ne, nqs, 1)).reshape(ne, nd)
+
+
+def _weighted_product_t(At, D, B, w, DB=None, out=None):
+    """:func:`_weighted_product` with ``A`` given as ``At`` (e, d, q s); ``DB`` (e, q, s, f) a
+    work array for ``w D B``, ``out`` (e, d, f) the result's (None: new arrays)."""
+    ne, nq, ns, nf = B.shape
+    DB = np.matmul(D * w[..., None, None], B, out=DB)                  # (e, q, s, f)
+    return np.matmul(At, DB.reshape(ne, nq * ns, nf), out=out)
 
 
 def _vec_to_stress2(s: np.ndarray) -> np.ndarray:

@@ -29,6 +29,8 @@ __all__ = ["J2Plasticity", "J2Linear", "J2Table"]
 
 _DEV = np.diag([1.0, 1.0, 1.0, 0.5])              # engineering strain -> tensor components
 _DEV[:3, :3] -= 1.0 / 3.0                          # ... and deviatoric part (2G * _DEV = dev. stiffness)
+_NORMAL_NORMAL = np.outer(_NORMAL, _NORMAL)
+_ENGINEERING = np.array([1.0, 1.0, 1.0, 2.0])     # tensor -> engineering shear
 
 
 class J2Plasticity(MaterialLaw):
@@ -77,28 +79,35 @@ class J2Plasticity(MaterialLaw):
 
         q, peeq, dq = q_tr.copy(), peeq_n.copy(), np.ones_like(q_tr)
         ok = np.ones(q_tr.shape, dtype=bool)
-        if plastic.any():
-            q[plastic], peeq[plastic], dq[plastic], ok[plastic] = self._return_map(
-                q_tr[plastic], peeq_n[plastic])
+        # the plastic points: every point (a slice, no gathered copies) or a mask
+        some = plastic.any()
+        every = some and plastic.all()
+        pl = slice(None) if every else plastic
+        if some:
+            q[pl], peeq[pl], dq[pl], ok[pl] = self._return_map(q_tr[pl], peeq_n[pl])
 
         theta = np.divide(q, q_tr, out=np.ones_like(q), where=plastic)  # dev. stress scale
         s = theta[:, None] * s_tr
         stress = s + (K * tr)[:, None] * _NORMAL
         eps_e = eps.copy()
         # elastic strain of the returned stress: same volume, deviator s / 2G (shear s12 / G)
-        eps_e[plastic] = (tr[plastic, None] / 3.0 * _NORMAL
-                          + s[plastic] / (2.0 * G) * np.array([1.0, 1.0, 1.0, 2.0]))
+        if some:
+            eps_e[pl] = tr[pl, None] / 3.0 * _NORMAL + s[pl] / (2.0 * G) * _ENGINEERING
 
         # consistent tangent (Simo & Hughes 1998, box 3.2, any hardening):
         # D = K 1x1 + 2G theta P_dev + 2G (dq/dq_tr - theta) n x n,  theta = q / q_tr
-        D = np.broadcast_to(self.D_elastic, (eps.shape[0], 4, 4)).copy()
-        if plastic.any():
-            n = s_tr[plastic] / norm_tr[plastic, None]                     # unit flow direction
-            th, beta = theta[plastic], dq[plastic]
-            D[plastic] = (K * np.outer(_NORMAL, _NORMAL)
-                          + (2.0 * G * th)[:, None, None] * _DEV
-                          + (2.0 * G * (beta - th))[:, None, None] * np.einsum("ms,mt->mst", n, n))
-        ok &= np.isfinite(stress).all(-1) & np.isfinite(D).all((-2, -1))
+        if some:
+            n = s_tr[pl] / norm_tr[pl, None]                               # unit flow direction
+            th, beta = theta[pl], dq[pl]
+            Dp = (K * _NORMAL_NORMAL + (2.0 * G * th)[:, None, None] * _DEV
+                  + (2.0 * G * (beta - th))[:, None, None] * np.einsum("ms,mt->mst", n, n))
+        if every:
+            D = Dp
+        else:
+            D = np.broadcast_to(self.D_elastic, (eps.shape[0], 4, 4)).copy()
+            if some:
+                D[plastic] = Dp
+        ok &= np.isfinite(stress).all(-1) & np.isfinite(D.reshape(-1, 16)).all(-1)
 
         new_state = {"eps_e": eps_e.reshape(shape + (4,)), "peeq": peeq.reshape(shape)}
         return stress.reshape(shape + (4,)), D.reshape(shape + (4, 4)), new_state, ok.reshape(shape)

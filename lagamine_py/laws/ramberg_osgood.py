@@ -87,11 +87,12 @@ class RambergOsgood(J2Plasticity):
         by_q = (x_star >= hi) | (self._g_q(np.minimum(x_star, hi), q_tr, peeq_n)[0] >= 0.0)
 
         q, peeq, ok = np.empty_like(q_tr), np.empty_like(q_tr), np.empty(q_tr.shape, dtype=bool)
-        for i in (by_q, ~by_q):
-            if not i.any():
+        for in_q, mask in ((True, by_q), (False, ~by_q)):
+            if not mask.any():
                 continue
+            i = slice(None) if mask.all() else mask         # every point: views, no gathers
             qt, pn, xs = q_tr[i], peeq_n[i], x_star[i]
-            if i is by_q:
+            if in_q:
                 x, ok[i] = safeguarded_newton(lambda x, k: self._g_q(x, qt[k], pn[k]),
                                               lo[i], np.minimum(hi[i], xs), self.tol, self.max_iter)
                 q[i] = np.exp(x)
@@ -154,15 +155,16 @@ class RambergOsgood(J2Plasticity):
 def safeguarded_newton(fun, lo, hi, tol, max_iter):
     """Roots of increasing scalar functions, batched: Newton from ``hi``, bisection fallback.
 
-    ``fun(x, k) -> (g, dg)`` evaluates the residuals of the points ``k`` (an index array
-    into the batch) at ``x``; ``lo``/``hi`` (m,) bracket the roots (``g(lo) <= 0 <= g(hi)``).
+    ``fun(x, k) -> (g, dg)`` evaluates the residuals of the points ``k`` (``slice(None)``, every
+    point, at the first iteration; then an index array into the batch) at ``x``; ``lo``/``hi``
+    (m,) bracket the roots (``g(lo) <= 0 <= g(hi)``).
     A Newton step that leaves the current bracket is replaced by bisection, so the iteration
     cannot diverge.  Returns ``(x, converged)``: converged where a Newton step fell below
     ``tol`` (the quadratic step leaves x far closer still) or the bracket is narrower.
     """
     lo, hi = lo.astype(float), hi.astype(float)
     x = hi.copy()
-    active = np.arange(x.size)
+    active = slice(None)                  # every point at first: views, then the indices left
     for _ in range(max_iter):
         xa, la, ha = x[active], lo[active], hi[active]
         g, dg = fun(xa, active)
@@ -174,7 +176,7 @@ def safeguarded_newton(fun, lo, hi, tol, max_iter):
         x_new = np.where(newton, x_newton, 0.5 * (la + ha))
         done = (newton & (np.abs(x_new - xa) <= tol)) | (ha - la <= tol) | (g == 0.0)
         x[active], lo[active], hi[active] = x_new, la, ha
-        active = active[~done]
+        active = np.flatnonzero(~done) if isinstance(active, slice) else active[~done]
         if active.size == 0:
             break
     converged = np.ones(x.shape, dtype=bool)
