@@ -270,7 +270,9 @@ def test_floating_body_names_its_unrestrained_dofs(tmp_path):
 def test_flip_flop_tracker_sees_slip_reversals_and_settles():
     """Unit check of the flip-flop control: a point slipping +, -, + is frozen in STICK (the
     state between), one going slip, stick, slip is frozen where it is; the free law's status
-    replaces a frozen one that it contradicts (``settle``), at most ``max_rounds`` times."""
+    replaces a frozen one that it contradicts (``settle``), at most ``max_rounds`` times; then
+    once every point is released (the increment's own context, the counts cleared: the same
+    chatter freezes the points again), and after that the increment is cut back."""
     from lagamine_py.elements.base import StepContext
     from lagamine_py.solver.stabilisation import FlipFlop
 
@@ -287,4 +289,11 @@ def test_flip_flop_tracker_sees_slip_reversals_and_settles():
                  "p": np.full(3, 5.0)}]
     assert ff.settle(ctx, free).freeze_contact["S->F"].tolist() == [2, 2, -1]
     assert ff.settle(ctx, free) is not None          # second round allowed
-    assert ff.settle(ctx, free) is None              # then the increment must be cut back
+    assert ff.settle(ctx, free) is ctx and not ff.active     # then every point released
+    outs = [ff.context(ctx, [{}, {"status": np.array(s, np.int8), "tau": np.array(t),
+                                  "p": np.full(3, 5.0)}])
+            for s, t in seq]
+    assert outs[1].freeze_contact is None            # the counts started again
+    assert outs[2].freeze_contact["S->F"].tolist() == [1, 2, -1]
+    assert ff.settle(ctx, free) is not None and ff.settle(ctx, free) is not None
+    assert ff.settle(ctx, free) is None              # released once: now the increment is cut back

@@ -9,6 +9,7 @@ context, has the observer settle it against the model's own laws.
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 import numpy as np
 
@@ -17,6 +18,8 @@ from ..core.status import SLIP, STICK
 from .newton import IterationObserver
 
 __all__ = ["FlipFlop", "SLIP_NEG", "state_codes"]
+
+log = logging.getLogger("lagamine_py.solver")
 
 SLIP_NEG = 3                 # state code of a point slipping with tau < 0
 
@@ -43,7 +46,11 @@ class FlipFlop(IterationObserver):
 
     Freezing changes the law Newton solves, so a converged increment is accepted only if the
     free law agrees (:meth:`settle`); where it does not, the points concerned take the free
-    law's status and Newton goes on, at most ``max_rounds`` times.
+    law's status and Newton goes on, at most ``max_rounds`` times.  Then, ``releases`` times
+    per increment, every point is released (counts cleared) and Newton goes on with the free
+    law from the iterate reached, which the frozen law has brought next to the answer but for
+    the points in dispute; MAXIT still bounds the increment.  Only increments that would have
+    been cut back ("contact status did not settle") take that path.
 
     ``watched``: group index -> contact group name, the groups whose states are watched.
     ``ctx.freeze_contact`` becomes ``{group_name: (g,) int8}`` with -1 for free points and the
@@ -51,6 +58,7 @@ class FlipFlop(IterationObserver):
     """
 
     max_rounds = 2
+    releases = 1
     held = "frozen contact points"
     failure = ContactNotSettled
 
@@ -62,6 +70,7 @@ class FlipFlop(IterationObserver):
         self.both_ways: dict[int, np.ndarray] = {}
         self.frozen: dict[int, np.ndarray] = {}
         self.rounds = 0
+        self.released = 0
 
     @property
     def active(self) -> bool:
@@ -108,10 +117,19 @@ class FlipFlop(IterationObserver):
     def settle(self, ctx, free_states):
         """After a converged solve with frozen points whose free-law evaluation does not converge:
         give the frozen points where the free law disagrees the free law's status (held) and
-        return the context for more iterations; None when ``max_rounds`` are used up."""
+        return the context for more iterations; once ``max_rounds`` are used up, every point
+        released and the increment's own context (``releases`` times), then None."""
         self.rounds += 1
         if self.rounds > self.max_rounds:
-            return None
+            if self.released >= self.releases:
+                return None
+            self.released += 1
+            log.info("      every frozen contact point released: the free law from this iterate")
+            self.rounds = 0
+            self.count.clear()
+            self.both_ways.clear()
+            self.frozen.clear()
+            return ctx
         for k, status, _ in self._states(free_states):
             fz = self.frozen.get(k)
             if fz is not None:
