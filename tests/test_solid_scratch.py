@@ -1,12 +1,12 @@
-"""The NumPy NLGEOM solid path's kept work arrays and its reorganised operations (issue 17
-item 8: the per-call cost of the solid group, with results bit for bit).
+"""The NumPy NLGEOM solid path's work arrays and its reorganised operations (issue 17 item 8:
+the per-call cost of the solid group, with results bit for bit).
 
-The group keeps its largest NLGEOM temporaries between calls (``SolidElement._scratch``: the
-operator, ``M``, ``w D M``, the log's derivative, the geometric part) and writes a chunk's
-tangent straight into the group's ``K``.  What must hold: no result of a call (forces, tangent,
-state, a deferred tangent) is or shares one of those arrays, so a later call -- of the same
-group, another chunk, another state -- never changes an earlier result; and every result is the
-one of a fresh group, to the bit.  ``_spectral`` writes out the einsum it replaced in that
+The path writes its largest temporaries into named work arrays (``SolidElement._scratch``) and a
+chunk's tangent straight into the group's ``K``.  What must hold: a later call -- of the same
+group, another chunk, another state -- never changes an earlier result (forces, tangent, state,
+a deferred tangent); and every result is the one of a fresh group, to the bit.  (The work
+arrays were kept between calls for a while; that held 3 MB at 40x20 and was undone.  These
+tests are what would catch a pool that leaks into a result.)  ``_spectral`` writes out the einsum it replaced in that
 einsum's order of operations: the same bytes, signed zeros included.
 """
 from __future__ import annotations
@@ -54,13 +54,9 @@ def _bytes(r):
     return out
 
 
-def _scratch_arrays(group):
-    return list(group._cache.get("scratch", {}).values())
-
-
 @pytest.mark.parametrize("etype", ["Q8PE", "Q8AX"])
 @pytest.mark.parametrize("chunk", [None, 40])
-def test_results_never_share_the_kept_work_arrays(etype, chunk):
+def test_a_later_call_never_changes_an_earlier_result(etype, chunk):
     group, xy = _group(etype)
     if chunk:
         group.chunk = chunk                          # 120 elements: three chunks of 40
@@ -70,11 +66,6 @@ def test_results_never_share_the_kept_work_arrays(etype, chunk):
     deferred = group.compute(u1, o1, state, CTX, LATER)
     kept = _bytes(first)
     assert (first.state["peeq"] > 0).any()           # the return mapping ran
-    scratch = _scratch_arrays(group)
-    names = {name for name, _ in group._cache["scratch"]}
-    assert {"M", "DB", "G4", "C", "Kg"} <= names and ("G3" in names) == (etype == "Q8PE")
-    for a in [first.f, first.K, *first.state.values()]:
-        assert not any(np.shares_memory(a, s) for s in scratch)
     # another evaluation, other displacements: the first results are untouched ...
     second = group.compute(u2, o2, first.state, CTX, True)
     assert _bytes(first) == kept
@@ -82,8 +73,7 @@ def test_results_never_share_the_kept_work_arrays(etype, chunk):
     # ... the deferred tangent, taken after it, is the first one's ...
     K_later = deferred.later()
     assert K_later.tobytes() == kept["K"]
-    assert not any(np.shares_memory(K_later, s) for s in scratch)
-    # ... and a fresh group (no kept arrays) gives the same bytes
+    # ... and a fresh group gives the same bytes
     fresh, _ = _group(etype)
     if chunk:
         fresh.chunk = chunk

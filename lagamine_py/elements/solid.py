@@ -319,15 +319,11 @@ class SolidElement(Element):
         return _ALL_ROWS if self.axisymmetric else _PLANE_ROWS
 
     def _scratch(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
-        """A work array of ``shape``, zeros when made, kept for the next call (one pool for the
-        group and its chunk views, computed one after the other): the NLGEOM path's largest
-        temporaries, so that their pages are not handed back to the system and faulted in
-        again at every call (1 300 page faults per call at 800 Q8 without)."""
-        pool = self._cache.setdefault("scratch", {})
-        a = pool.get((name, shape))
-        if a is None:
-            a = pool[(name, shape)] = np.zeros(shape)
-        return a
+        """A zeroed work array of ``shape`` for the NLGEOM path's largest temporaries (``name``
+        says which).  Made afresh at every call: keeping them between calls saved their page
+        faults (4 % of a 40x20 run's CPU, nothing measurable at 16x8) but held 3 MB, which put
+        the 40x20 peak above CalculiX's (issue 17 items 5 and 8, docs/performance.md)."""
+        return np.zeros(shape)
 
     def _failure(self, mask: np.ndarray, what: str, state, tangent: bool) -> GroupResult:
         self._last_failure = (what, mask)
@@ -380,7 +376,7 @@ class SolidElement(Element):
                 for name in ("ids", "conn", "dofs", "detJ0", "dNdX", "R0", "w0", "_bad0"):
                     setattr(v, name, getattr(self, name)[sl])
                 v._views = None
-                v._cache = {"scratch": self._cache.setdefault("scratch", {})}   # one pool
+                v._cache = {}
                 views.append((sl, v))
             self._views = views
         return self._views
