@@ -59,6 +59,19 @@ def test_object_arrays_are_written_by_np_savez(monkeypatch):
     assert rs.npz_bytes(arrays) == _savez(arrays) and rs._template is None
 
 
+def test_large_restart_data_keeps_no_template(monkeypatch):
+    """Above ``TEMPLATE_BYTES`` each save is ``np.savez``'s and no template is held (its bytes
+    and their copies would sit beside the run's peak); a small save after it builds one."""
+    monkeypatch.setattr(rs, "_template", None)
+    monkeypatch.setattr(rs, "TEMPLATE_BYTES", 2000)
+    rng = np.random.default_rng(3)
+    small = _arrays(rng, 1)
+    assert rs.npz_bytes(small) == _savez(small) and rs._template is not None
+    large = _arrays(rng, 2, n=400)                   # 3.2 kB of displacements
+    assert rs.npz_bytes(large) == _savez(large) and rs._template is None
+    assert rs.npz_bytes(large) == _savez(large) and rs._template is None
+
+
 def test_save_writes_what_np_savez_writes_and_loads_back(tmp_path, monkeypatch):
     monkeypatch.setattr(rs, "_template", None)
     rng = np.random.default_rng(3)
