@@ -118,6 +118,39 @@ def test_release_waits_for_the_retired_files(tmp_path, monkeypatch):
     assert _retired(out) == [] and sorted(os.listdir(out)) == ["lagamine-run.json", "restart.npz"]
 
 
+def test_a_file_retired_while_another_caller_waits_is_unlinked_and_no_wait_hangs(tmp_path,
+                                                                                monkeypatch):
+    """Two runs of one process (threads): run A waits for the thread while it is slow on A's
+    file, and run B retires a file meanwhile.  B's file goes to a thread of its own; A's wait
+    ends, and so does B's.  (With one queue for every thread, B's new thread could take the
+    sentinel meant for A's, and A's would then wait on the queue, and A on it, for ever.)"""
+    real, busy, go = os.unlink, threading.Event(), threading.Event()
+
+    def slow(path, *a, **k):
+        if Path(path).name.endswith("-a"):
+            busy.set()
+            go.wait(5)
+        return real(path, *a, **k)
+    monkeypatch.setattr(os, "unlink", slow)
+    monkeypatch.setattr(od, "_reaper", od._Reaper())
+    for name in ("a", "b"):
+        (tmp_path / name).write_text("old")
+    od.retire(tmp_path / "a")
+    assert busy.wait(5)                              # the thread is in A's unlink
+    waiter = threading.Thread(target=od.wait_retired)
+    waiter.start()
+    while od._reaper.thread is not None:             # A's wait has taken the thread
+        threading.Event().wait(0.001)
+    od.retire(tmp_path / "b")
+    go.set()
+    waiter.join(5)
+    assert not waiter.is_alive()
+    done = threading.Thread(target=od.wait_retired)
+    done.start()
+    done.join(5)
+    assert not done.is_alive() and _retired(tmp_path) == []
+
+
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="fork")
 def test_a_forked_child_retires_files_itself(tmp_path):
     """Forked while the parent's thread runs: the child's files are unlinked by a thread of

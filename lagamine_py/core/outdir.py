@@ -112,10 +112,14 @@ def write_atomic(path: Path, data: str | bytes) -> None:
 
 class _Reaper:
     """The background thread that unlinks retired files, started at the first one; unlinking
-    is a system call that releases the GIL, so its wait overlaps the run's computing."""
+    is a system call that releases the GIL, so its wait overlaps the run's computing.  Each
+    thread has its own queue: a file retired while another caller waits for the last thread
+    goes to a new thread, never behind the sentinel that ends the old one (with one shared
+    queue the new thread could take that sentinel and leave the old one, and its waiter,
+    blocked for ever)."""
 
     def __init__(self):
-        self.queue: queue.SimpleQueue = queue.SimpleQueue()
+        self.queue: queue.SimpleQueue | None = None
         self.thread: threading.Thread | None = None
         self.lock = threading.Lock()
         self.count = itertools.count()
@@ -123,23 +127,26 @@ class _Reaper:
     def add(self, path: str) -> None:
         with self.lock:
             if self.thread is None:
-                self.thread = threading.Thread(target=self._work, name="lagamine-retired",
-                                               daemon=True)
+                self.queue = queue.SimpleQueue()
+                self.thread = threading.Thread(target=self._work, args=(self.queue,),
+                                               name="lagamine-retired", daemon=True)
                 self.thread.start()
             self.queue.put(path)
 
-    def _work(self) -> None:
-        while (path := self.queue.get()) is not None:
+    @staticmethod
+    def _work(paths: queue.SimpleQueue) -> None:
+        while (path := paths.get()) is not None:
             try:
                 os.unlink(path)
             except OSError:             # gone already; the next claim unlinks what stays
                 pass
 
     def wait(self) -> None:
+        """Until every file retired before this call is unlinked."""
         with self.lock:
-            thread, self.thread = self.thread, None
+            thread, paths, self.thread, self.queue = self.thread, self.queue, None, None
             if thread is not None:
-                self.queue.put(None)
+                paths.put(None)
         if thread is not None:
             thread.join()
 
