@@ -408,7 +408,7 @@ MUTATIONS = [
       "dp = (q_tr - self.yield_stress(peeq_n)) / (G3 + H)",
       "dp = (q_tr - self.yield_stress(peeq_n)) / G3"),
     M("NumPy: RO branch swap", "lagamine_py/laws/ramberg_osgood.py",
-      "            if i is by_q:", "            if i is not by_q:"),
+      "            if in_q:", "            if not in_q:"),
     M("NumPy: axisymmetric hoop row dropped", "lagamine_py/elements/solid.py",
       "            B[:, :, 2, :, 0] = self.N / r[..., None]",
       "            B[:, :, 2, :, 0] = 0.0"),
