@@ -1213,17 +1213,3 @@ def test_twin(twin):
     missing = [b for b in twin.required() if not visited[b]]
     assert not missing, f"{twin.entry}: batches visit no point of {missing}"
 
-
-def test_every_kernel_mutation_still_finds_its_text(monkeypatch):
-    """``tools/kernel_mutations.py`` replaces a text that must occur exactly once in its file: a
-    rewrite that moves the text leaves the mutation (and the branch it proves) untested, which
-    the tool only says when it is run (the NumPy RO branch swap was stale that way)."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-    path = Path(__file__).resolve().parents[1] / "tools" / "kernel_mutations.py"
-    spec = importlib.util.spec_from_file_location("kernel_mutations", path)
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, module)     # its dataclass looks itself up
-    spec.loader.exec_module(module)
-    module.check(module.MUTATIONS)                 # SystemExit names the stale mutation

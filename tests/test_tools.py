@@ -394,3 +394,19 @@ B_LEFT, 1, 1, 0
 0, 0.0002, -0.0005
 *END STEP
 """
+
+
+def test_every_kernel_mutation_still_finds_its_text(monkeypatch):
+    """``tools/kernel_mutations.py`` replaces a text that must occur exactly once in its file: a
+    rewrite that moves the text leaves the mutation (and the branch it proves) untested, which
+    the tool only says when it is run (the NumPy RO branch swap was stale that way).  Here, not in
+    tests/test_kernel_twins.py, which the tool runs on each mutant: there it would catch them all."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "tools" / "kernel_mutations.py"
+    spec = importlib.util.spec_from_file_location("kernel_mutations", path)
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, module)     # its dataclass looks itself up
+    spec.loader.exec_module(module)
+    module.check(module.MUTATIONS)                 # SystemExit names the stale mutation
