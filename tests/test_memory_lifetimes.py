@@ -350,3 +350,34 @@ def test_newton_holds_no_earlier_evaluation_while_it_evaluates(rtol):
                            observers=(watch,))
     assert watch.settled == 1 and conv.u == pytest.approx(f_ext / 2.0, rel=1e-14)
     assert len(alive) >= 5 and alive == [0] * len(alive)
+
+
+def test_no_increment_result_is_alive_at_the_next_increments_evaluations(tmp_path, monkeypatch):
+    """The results handed to the writers are let go after the hand-out: the displacements
+    table keeps of a step's latest increment only what it writes (step, increment, time,
+    coordinates, displacements), not the whole result, whose cells (strains, stresses) and
+    contact points were alive through every evaluation and factorisation of the next increment
+    (memory4).  The table written is unchanged (tests/test_regression.py compares it)."""
+    from lagamine_py.output import nodal
+    from lagamine_py.solver import problem as problem_mod
+    model = load_deck(DECK)
+    refs, alive = [], []
+    increment = nodal.DisplacementsWriter.increment
+    evaluate = problem_mod.Problem.evaluate
+
+    def spy_increment(self, result):
+        refs.append(weakref.ref(result))
+        increment(self, result)
+
+    def spy_evaluate(self, *args, **kw):
+        alive.append(sum(r() is not None for r in refs))
+        return evaluate(self, *args, **kw)
+
+    monkeypatch.setattr(nodal.DisplacementsWriter, "increment", spy_increment)
+    monkeypatch.setattr(problem_mod.Problem, "evaluate", spy_evaluate)
+    outcome = run(model, tmp_path / "out")
+    assert outcome.status == 0, outcome.message
+    assert len(refs) >= 10 and len(alive) >= 20
+    assert alive == [0] * len(alive)
+    rows = (tmp_path / "out" / "displacements.csv").read_text().splitlines()
+    assert len(rows) == 1 + len(model.steps) * len(model.coords)

@@ -10,10 +10,27 @@ resumes.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .base import IncrementResult, Writer
 from .tables import trim_rows
+
+
+class _Row(NamedTuple):
+    """What :meth:`DisplacementsWriter._write` reads of an increment: kept in place of the
+    whole :class:`IncrementResult`, whose cells (strains, the committed law state) and contact
+    points would stay alive through the next increment's evaluations and factorisations."""
+    step: int
+    increment: int
+    time: float
+    coords0: np.ndarray
+    u: np.ndarray
+
+
+def _row(r: IncrementResult) -> _Row:
+    return _Row(r.step, r.increment, r.time, r.coords0, r.u)
 
 
 class DisplacementsWriter(Writer):
@@ -27,7 +44,7 @@ class DisplacementsWriter(Writer):
         if not self._resume:
             self._fh.write("step,increment,time,node,x,y,u1,u2\n")
         self._fh.flush()
-        self._pending: IncrementResult | None = None
+        self._pending: _Row | None = None
 
     def _trim_once(self, r: IncrementResult) -> None:
         """On resume, rows of the step being resumed (written by a clean stop) go."""
@@ -41,9 +58,9 @@ class DisplacementsWriter(Writer):
         self._trim_once(result)
         if self._pending is not None and self._pending.step != result.step:
             self._write(self._pending)
-        self._pending = result
+        self._pending = _row(result)
         if result.step_end:
-            self._write(result)
+            self._write(self._pending)
             self._pending = None
 
     def start_step(self, step_number, step) -> None:
@@ -59,7 +76,7 @@ class DisplacementsWriter(Writer):
         finally:
             self._fh.close()
 
-    def _write(self, r: IncrementResult) -> None:
+    def _write(self, r: _Row) -> None:
         # Python floats and ints (tolist): formatting NumPy scalars one by one is 3x slower
         ids = np.asarray(self.model.node_ids).astype(np.int64).tolist()
         lead = f"{r.step},{r.increment},{r.time:.17g}"
