@@ -1,7 +1,7 @@
 """The NumPy NLGEOM solid path's work arrays and its reorganised operations (issue 17 item 8:
 the per-call cost of the solid group, with results bit for bit).
 
-The path writes its largest temporaries into named work arrays (``SolidElement._scratch``) and a
+The path writes its largest temporaries into work arrays through ``out=`` and a
 chunk's tangent straight into the group's ``K``.  What must hold: a later call -- of the same
 group, another chunk, another state -- never changes an earlier result (forces, tangent, state,
 a deferred tangent); and every result is the one of a fresh group, to the bit.  (The work

@@ -308,7 +308,7 @@ class SolidElement(Element):
         operator without its zero hoop row (:data:`_PLANE_ROWS`), a quarter of the tangent's
         products left out (their terms were exact zeros: the same sums; the force's product,
         a matrix-vector one, sums in another grouping when shortened, so it keeps 4 rows)."""
-        G = self._fill_operator(self._scratch(f"G{ns}", (len(dNdx), self.nq, ns, self.nen, 2)),
+        G = self._fill_operator(np.zeros((len(dNdx), self.nq, ns, self.nen, 2)),
                                 dNdx, r)
         ne, nq, ns, nd = G.shape
         return np.swapaxes(G.reshape(ne, nq * ns, nd), 1, 2)
@@ -317,13 +317,6 @@ class SolidElement(Element):
         """The strain 4-vector's rows the NLGEOM products keep: all, or in plane strain
         :data:`_PLANE_ROWS` (row 33 of the operator is zero there)."""
         return _ALL_ROWS if self.axisymmetric else _PLANE_ROWS
-
-    def _scratch(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
-        """A zeroed work array of ``shape`` for the NLGEOM path's largest temporaries (``name``
-        says which).  Made afresh at every call: keeping them between calls saved their page
-        faults (4 % of a 40x20 run's CPU, nothing measurable at 16x8) but held 3 MB, which put
-        the 40x20 peak above CalculiX's (issue 17 items 5 and 8, docs/performance.md)."""
-        return np.zeros(shape)
 
     def _failure(self, mask: np.ndarray, what: str, state, tangent: bool) -> GroupResult:
         self._last_failure = (what, mask)
@@ -527,15 +520,16 @@ class SolidElement(Element):
         """The NLGEOM tangent (e, 2 nen, 2 nen) at the point :meth:`_large_strain` computed
         (``Gt`` = :meth:`_operator_t` of the rows :meth:`_rows`; None: formed from ``dNdx`` and
         ``r``), into ``out`` if given.  Its large temporaries (the operator, ``M``, ``D M``:
-        (e, q, s, d) each; ``C``, the geometric part) are the group's :meth:`_scratch` arrays."""
+        (e, q, s, d) each; ``C``, the geometric part) are made zeroed and written by the
+        products (``out=``) that fill them."""
         ne, nq, na = len(dNdx), self.nq, self.nen
         rows = self._rows()
         ns = len(rows)
         if Gt is None:
             Gt = self._operator_t(dNdx, r, ns)
         C = _log_b_derivative(*log_parts, rows=_IJ_OF_ROW[rows],           # (e, q, s, k, n)
-                              work=(self._scratch("C", (ne, nq, ns, 2, 2)),
-                                    self._scratch("C term", (ne, nq, ns, 2, 2))))
+                              work=(np.zeros((ne, nq, ns, 2, 2)),
+                                    np.zeros((ne, nq, ns, 2, 2))))
 
         # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du, i.e.
         # dE_ij / du_bk = 2 sum_n C_ijkn h_bn (C symmetric in kn): one (b, n) @ (n, k) product
@@ -545,7 +539,7 @@ class SolidElement(Element):
         # d eps33 = du_r / r in axisymmetry; the factors 2 (and 4 for the engineering shear)
         # are applied to D's columns (powers of two: exact, the same sums as before).
         h = dNdx @ b2                                                     # (e, q, b, n)
-        M = np.matmul(h[:, :, None], C, out=self._scratch("M", (ne, nq, ns, na, 2)))
+        M = np.matmul(h[:, :, None], C, out=np.zeros((ne, nq, ns, na, 2)))
         if self.axisymmetric:
             M[:, :, 2] = 0.0
             M[:, :, 2, :, 0] = self.N / r[..., None]
@@ -554,14 +548,14 @@ class SolidElement(Element):
         else:                            # rows and columns 11, 22, 12 (column 33's factor is 0)
             DS = D[:, :, _PLANE_ROWS[:, None], _PLANE_ROWS] * _ROW_SCALE[_PLANE_ROWS]
         K = _weighted_product_t(Gt, DS, M.reshape(ne, nq, ns, 2 * na), self.w0,
-                                self._scratch("DB", (ne, nq, ns, 2 * na)), out)
+                                np.zeros((ne, nq, ns, 2 * na)), out)
 
         # geometric part: d(dN_a/dx_j) = -dN_a/dx_k l_kj, d(N_a / r) = -N_a du_r / r^2,
         # subtracted from K in place through a transposed view (no negated, transposed copy)
         tau2 = _vec_to_stress2(tau)
         T = dNdx @ tau2                                # (e, q, b, i) = tau_ij dN_b/dx_j
         Kg = np.matmul(np.swapaxes((dNdx * self.w0[..., None, None]).reshape(ne, nq, 2 * na), 1, 2),
-                       T.reshape(ne, nq, 2 * na), out=self._scratch("Kg", (ne, 2 * na, 2 * na)))
+                       T.reshape(ne, nq, 2 * na), out=np.zeros((ne, 2 * na, 2 * na)))
         # Kg: (e, (a k), (b i)), negated
         Kg = Kg.reshape(ne, na, 2, na, 2).transpose(0, 1, 4, 3, 2)   # (e, a, i, b, k) view
         K5 = K.reshape(ne, na, 2, na, 2)
