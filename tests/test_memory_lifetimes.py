@@ -269,31 +269,39 @@ def test_pardiso_keeps_the_matrix_of_a_factor_with_perturbed_pivots():
             p.solve(np.ones(n))                        # the guard, against the matrix kept
 
 
+def _alive_at_evaluations(monkeypatch, refs: list) -> list[int]:
+    """``Problem.evaluate`` patched to record, at each call, how many of the weak references
+    ``refs`` (filled by the caller's own spies) are alive; returns that record."""
+    from lagamine_py.solver import problem as problem_mod
+    alive, evaluate = [], problem_mod.Problem.evaluate
+
+    def spy_evaluate(self, *args, **kw):
+        alive.append(sum(r() is not None for r in refs))
+        return evaluate(self, *args, **kw)
+
+    monkeypatch.setattr(problem_mod.Problem, "evaluate", spy_evaluate)
+    return alive
+
+
 def _pardiso_run(tmp_path, name, monkeypatch, hold=True):
     """The main job on PARDISO with the factor reused (KRYLOVDOFS=0: its 866 DOFs are below
     the default's 5 000); ``hold=False``: the solver keeps its matrix (``hold_matrix`` does
     nothing), as before.  Returns (u at the end, contact totals, factorisations, alive) with
     ``alive`` the factorised K_ff still held at each evaluation that follows a solve."""
-    from lagamine_py.solver import problem as problem_mod
     from lagamine_py.results import RunResults
     text = DECK.read_text()
     for kw in ("*DLOAD", "*BOUNDARY"):
         text = text.replace(kw, f"*CONTROLS\nSOLVER=PARDISO, KRYLOVDOFS=0\n{kw}")
     deck = tmp_path / f"{name}.dat"
     deck.write_text(text)
-    factored, alive = [], []
-    factor, evaluate = linear.PardisoSolver.factor, problem_mod.Problem.evaluate
+    factored, factor = [], linear.PardisoSolver.factor
 
     def spy_factor(self, A):
         factored.append(weakref.ref(A.data if A.data.base is None else A.data.base))
         factor(self, A)
 
-    def spy_evaluate(self, *a, **k):
-        alive.append(sum(r() is not None for r in factored))
-        return evaluate(self, *a, **k)
-
     monkeypatch.setattr(linear.PardisoSolver, "factor", spy_factor)
-    monkeypatch.setattr(problem_mod.Problem, "evaluate", spy_evaluate)
+    alive = _alive_at_evaluations(monkeypatch, factored)
     if not hold:
         monkeypatch.setattr(linear.PardisoSolver, "hold_matrix", lambda self, A: None)
     outcome = run(load_deck(deck), tmp_path / name)
@@ -359,22 +367,15 @@ def test_no_increment_result_is_alive_at_the_next_increments_evaluations(tmp_pat
     contact points were alive through every evaluation and factorisation of the next increment
     (memory4).  The table written is unchanged (tests/test_regression.py compares it)."""
     from lagamine_py.output import nodal
-    from lagamine_py.solver import problem as problem_mod
     model = load_deck(DECK)
-    refs, alive = [], []
-    increment = nodal.DisplacementsWriter.increment
-    evaluate = problem_mod.Problem.evaluate
+    refs, increment = [], nodal.DisplacementsWriter.increment
 
     def spy_increment(self, result):
         refs.append(weakref.ref(result))
         increment(self, result)
 
-    def spy_evaluate(self, *args, **kw):
-        alive.append(sum(r() is not None for r in refs))
-        return evaluate(self, *args, **kw)
-
     monkeypatch.setattr(nodal.DisplacementsWriter, "increment", spy_increment)
-    monkeypatch.setattr(problem_mod.Problem, "evaluate", spy_evaluate)
+    alive = _alive_at_evaluations(monkeypatch, refs)
     outcome = run(model, tmp_path / "out")
     assert outcome.status == 0, outcome.message
     assert len(refs) >= 10 and len(alive) >= 20
