@@ -269,13 +269,13 @@ def _norm(v):
     return int(v) if float(v) == int(v) else float(v)
 
 
-
 def _finite_scale(values: np.ndarray) -> float:
     """Largest |value| of a column over its finite entries (0 when none): a gap is NaN where a
     contact point has no partner, and a NaN scale would allow no difference at all."""
     v = np.abs(np.asarray(values, float))
     v = v[np.isfinite(v)]
     return float(v.max()) if v.size else 0.0
+
 
 def _compare_table(fname, run, ref, key_cols, qtys, text_col, tol, rep, force=0.0):
     for c in ("step",) + tuple(key_cols) + tuple(qtys):
