@@ -81,6 +81,58 @@ def test_splu_solves_to_round_off(tangents):
     assert _rel_residual(A, s.solve(b), b) < 1e-10
 
 
+
+def _with_values(A, seed, scale=0.1):
+    """A CSR matrix on A's very index arrays (as FreeDofs.kff hands them out), other values."""
+    rng = np.random.default_rng(seed)
+    return sp.csr_matrix((A.data * (1 + scale * rng.random(A.nnz)), A.indices, A.indptr),
+                         shape=A.shape)
+
+
+def test_splu_orders_a_structure_once(tangents, monkeypatch):
+    """SuperLU's column ordering is computed at the first factorisation of a structure and
+    kept (superlu.KeptOrdering): the later factors and solutions are those of an ordering
+    computed afresh, bit for bit."""
+    A, b = tangents["nonsym"], tangents["b"]
+    orderings = []
+    real = linear.splu
+    monkeypatch.setattr(linear, "splu", lambda *a, **k: orderings.append(1) or real(*a, **k))
+    s = SpluSolver()
+    for k, Ak in enumerate([A, _with_values(A, 1), _with_values(A, 2)]):
+        s.factor(Ak)
+        x = s.solve(b)
+        fresh = SpluSolver()
+        fresh.factor(Ak)                                  # its own first: ordered afresh
+        np.testing.assert_array_equal(x, fresh.solve(b))
+        assert _rel_residual(Ak, x, b) < 1e-10
+        assert s.ordered == (k > 0)
+    assert len(orderings) == 1 + 3                        # s ordered once, each fresh once
+    # equal structure in new arrays: still kept; another structure: ordered again
+    A3 = sp.csr_matrix((A.data.copy(), A.indices.copy(), A.indptr.copy()), shape=A.shape)
+    s.factor(A3)
+    assert s.ordered and len(orderings) == 4
+    S = tangents["sym"]
+    s.factor(S)
+    assert not s.ordered and len(orderings) == 5
+    assert _rel_residual(S, s.solve(b[:S.shape[0]]), b[:S.shape[0]]) < 1e-10
+
+
+def test_splu_names_a_small_pivot_by_its_column_with_the_kept_ordering(tangents):
+    """The pivot check maps the kept order's pivots back to the matrix's own columns."""
+    A = tangents["nonsym"]
+    j = 137
+    weak = A.copy()
+    weak.data[weak.indptr[j]:weak.indptr[j + 1]] *= 1e-20     # row j of K_ff: column j of A^T
+    s = SpluSolver()
+    s.factor(A)
+    with pytest.raises(SingularMatrixError) as kept:
+        s.factor(sp.csr_matrix((weak.data, A.indices, A.indptr), shape=A.shape))
+    assert s.ordering.matches(sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape))
+    with pytest.raises(SingularMatrixError) as fresh:
+        SpluSolver().factor(weak)
+    assert j in kept.value.dofs
+    np.testing.assert_array_equal(kept.value.dofs, fresh.value.dofs)
+
 @needs_pardiso
 @pytest.mark.parametrize("which, mtype", [("nonsym", 11), ("sym", -2)])
 def test_pardiso_agrees_with_splu(tangents, which, mtype):

@@ -30,7 +30,7 @@ from ..core.errors import SingularMatrixError
 from ..core.plugin import Plugin
 from ..core.threads import pin_threads
 from .pattern import index_dtype
-from .superlu import splu
+from .superlu import KeptOrdering, splu, superlu_module
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
@@ -187,9 +187,15 @@ class LinearSolver(Plugin):
 
 
 class SpluSolver(LinearSolver):
-    """SuperLU (scipy splu) with the MMD_AT_PLUS_A ordering."""
+    """SuperLU (scipy splu) with the MMD_AT_PLUS_A ordering, computed at the first
+    factorisation of a structure and kept for the next ones (:class:`KeptOrdering`: the same
+    factor, bit for bit, without ordering again)."""
 
     lu = None
+    #: the kept ordering of the structure last factorised (None: not kept yet)
+    ordering: KeptOrdering | None = None
+    #: the factor in hand is of the columns in ``ordering``'s order (its solves permute ``b``)
+    ordered = False
 
     def factor(self, A: sp.csr_matrix) -> None:
         # The CSR arrays of A are the CSC arrays of A^T: factor A^T without any conversion
@@ -204,19 +210,32 @@ class SpluSolver(LinearSolver):
         self.lu = None
         if fill >= TRIM_FILL:
             return_free_heap()
+        order = self.ordering
         try:
-            self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
+            if order is not None and order.matches(At):
+                self.lu = order.factor(At.data)
+                self.ordered = True
+            else:
+                self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
+                self.ordered = False
+                order = self.ordering = (KeptOrdering(At, self.lu)
+                                         if superlu_module() is not None and At.has_canonical_format
+                                         else None)
         except RuntimeError:                # "Factor is exactly singular"
             raise SingularMatrixError(_exact_singular_dofs(At, scale), "zero pivot") from None
         # Pr A Pc = L U with Pc[j, perm_c[j]] = 1: original column j has pivot U[perm_c[j]]
-        pivots = np.abs(self.lu.U.diagonal())[self.lu.perm_c]
+        position = order.position if order is not None else self.lu.perm_c
+        pivots = np.abs(self.lu.U.diagonal())[position]
         small = ~(pivots > PIVOT_RTOL * scale)          # also catches NaN
         if small.any():
             bad = np.flatnonzero(small)
             raise SingularMatrixError(np.union1d(bad, _suspects(A)), "zero pivot")
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        return self.lu.solve(np.asarray(b, float), trans="T")
+        b = np.asarray(b, float)
+        if self.ordered:
+            b = b[self.ordering.columns]
+        return self.lu.solve(b, trans="T")
 
 
 @functools.lru_cache(maxsize=None)
