@@ -117,6 +117,20 @@ def test_splu_orders_a_structure_once(tangents, monkeypatch):
     assert _rel_residual(S, s.solve(b[:S.shape[0]]), b[:S.shape[0]]) < 1e-10
 
 
+def test_splu_orders_every_factorisation_above_the_kept_size(tangents, monkeypatch):
+    A, b = tangents["nonsym"], tangents["b"]
+    monkeypatch.setattr(linear, "KEEP_ORDERING_ENTRIES", A.nnz - 1)
+    s = SpluSolver()
+    for k in range(2):
+        s.factor(_with_values(A, k))
+        assert s.ordering is None and not s.ordered
+        assert _rel_residual(_with_values(A, k), s.solve(b), b) < 1e-10
+    monkeypatch.setattr(linear, "KEEP_ORDERING_ENTRIES", A.nnz)
+    s.factor(A)
+    s.factor(A)
+    assert s.ordered
+
+
 def test_splu_names_a_small_pivot_by_its_column_with_the_kept_ordering(tangents):
     """The pivot check maps the kept order's pivots back to the matrix's own columns."""
     A = tangents["nonsym"]

