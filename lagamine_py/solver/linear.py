@@ -30,7 +30,7 @@ from ..core.errors import SingularMatrixError
 from ..core.plugin import Plugin
 from ..core.threads import pin_threads
 from .pattern import index_dtype
-from .superlu import KeptOrdering, splu, superlu_module, u_diagonal
+from .superlu import KeptOrdering, splu, superlu_module
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
@@ -229,7 +229,7 @@ class SpluSolver(LinearSolver):
             raise SingularMatrixError(_exact_singular_dofs(At, scale), "zero pivot") from None
         # Pr A Pc = L U with Pc[j, perm_c[j]] = 1: original column j has pivot U[perm_c[j]]
         position = order.position if order is not None else self.lu.perm_c
-        pivots = np.abs(u_diagonal(self.lu))[position]
+        pivots = np.abs(self.lu.U.diagonal())[position]
         small = ~(pivots > PIVOT_RTOL * scale)          # also catches NaN
         if small.any():
             bad = np.flatnonzero(small)
