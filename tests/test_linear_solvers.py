@@ -547,3 +547,23 @@ def test_pardiso_builds_the_upper_triangle_only_for_a_symmetric_matrix(tangents)
     assert np.array_equal(p._ia, U.indptr) and np.array_equal(p._ja, U.indices)
     assert np.array_equal(p._data, U.data)
     assert _rel_residual(S, p.solve(b), b) < 1e-10
+
+
+def test_splu_reports_an_exactly_singular_matrix_alike_with_the_kept_ordering(tangents):
+    """A zero row (its entries kept as explicit zeros): SuperLU stops on an exactly zero pivot
+    (RuntimeError), on the kept order as on a fresh one, and the same DOFs are named."""
+    A = tangents["nonsym"]
+    j = 101
+    zero = A.copy()
+    zero.data[zero.indptr[j]:zero.indptr[j + 1]] = 0.0
+    s = SpluSolver()
+    s.factor(A)
+    with pytest.raises(SingularMatrixError) as kept:
+        s.factor(sp.csr_matrix((zero.data, A.indices, A.indptr), shape=A.shape))
+    with pytest.raises(SingularMatrixError) as fresh:
+        SpluSolver().factor(zero)
+    assert j in kept.value.dofs
+    np.testing.assert_array_equal(kept.value.dofs, fresh.value.dofs)
+    s.factor(A)                                     # and the kept ordering serves again
+    assert s.ordered
+    assert _rel_residual(A, s.solve(tangents["b"]), tangents["b"]) < 1e-10
