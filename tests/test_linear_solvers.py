@@ -567,3 +567,15 @@ def test_splu_reports_an_exactly_singular_matrix_alike_with_the_kept_ordering(ta
     s.factor(A)                                     # and the kept ordering serves again
     assert s.ordered
     assert _rel_residual(A, s.solve(tangents["b"]), tangents["b"]) < 1e-10
+
+
+def test_splu_orders_every_factorisation_without_the_file_loaded_superlu(tangents, monkeypatch):
+    """Without scipy's SuperLU loaded by file, factors come from the public ``splu``, which
+    forces SymmetricMode with a NATURAL ordering: no ordering is kept."""
+    A, b = tangents["nonsym"], tangents["b"]
+    monkeypatch.setattr(linear, "superlu_module", lambda: None)
+    s = SpluSolver()
+    for k in range(2):
+        s.factor(_with_values(A, k))
+        assert s.ordering is None and not s.ordered
+        assert _rel_residual(_with_values(A, k), s.solve(b), b) < 1e-10
