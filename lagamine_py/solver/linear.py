@@ -50,10 +50,11 @@ SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a si
 #: its 0.46 s of increments in all; docs/performance.md)
 TRIM_FILL = 200_000
 #: SPLU keeps a structure's column ordering (:class:`KeptOrdering`) up to this many entries of
-#: the matrix: there the ordering is 13-15 % of a factorisation (the main job's 24 800 entries,
-#: 40x20's 152 000) and the kept arrays and the permuted values ~16 bytes an entry; above, it
-#: is ordered afresh at every factorisation as before (40x20 held +0.6-1.4 MB at its peak,
-#: which sits at CalculiX's: docs/performance.md, "Start-up, first run, memory")
+#: the matrix: the ordering is 12-13 % of a factorisation of the main job's (24 800 entries)
+#: and 8-15 % of 40x20's (152 000), and the kept arrays and the permuted values take ~20 bytes
+#: an entry; above, it is ordered afresh at every factorisation as before (kept, 40x20 held
+#: +2.0-2.6 MiB at a peak that sits at CalculiX's, for no measurable CPU: most of its solves
+#: reuse a factor through GMRES; docs/performance.md, "Start-up, first run, memory")
 KEEP_ORDERING_ENTRIES = 100_000
 
 
