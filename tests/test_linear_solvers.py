@@ -81,6 +81,93 @@ def test_splu_solves_to_round_off(tangents):
     assert _rel_residual(A, s.solve(b), b) < 1e-10
 
 
+
+def _with_values(A, seed, scale=0.1):
+    """A CSR matrix on A's very index arrays (as FreeDofs.kff hands them out), other values."""
+    rng = np.random.default_rng(seed)
+    return sp.csr_matrix((A.data * (1 + scale * rng.random(A.nnz)), A.indices, A.indptr),
+                         shape=A.shape)
+
+
+def test_splu_orders_a_structure_once(tangents, monkeypatch):
+    """SuperLU's column ordering is computed at the first factorisation of a structure and
+    kept (superlu.KeptOrdering): the later factors and solutions are those of an ordering
+    computed afresh, bit for bit."""
+    A, b = tangents["nonsym"], tangents["b"]
+    orderings = []
+    real = linear.splu
+    monkeypatch.setattr(linear, "splu", lambda *a, **k: orderings.append(1) or real(*a, **k))
+    s = SpluSolver()
+    for k, Ak in enumerate([A, _with_values(A, 1), _with_values(A, 2)]):
+        s.factor(Ak)
+        x = s.solve(b)
+        fresh = SpluSolver()
+        fresh.factor(Ak)                                  # its own first: ordered afresh
+        np.testing.assert_array_equal(x, fresh.solve(b))
+        assert _rel_residual(Ak, x, b) < 1e-10
+        assert s.ordered == (k > 0)
+    assert len(orderings) == 1 + 3                        # s ordered once, each fresh once
+    # equal structure in new arrays: still kept; another structure: ordered again
+    A3 = sp.csr_matrix((A.data.copy(), A.indices.copy(), A.indptr.copy()), shape=A.shape)
+    s.factor(A3)
+    assert s.ordered and len(orderings) == 4
+    S = tangents["sym"]
+    s.factor(S)
+    assert not s.ordered and len(orderings) == 5
+    assert _rel_residual(S, s.solve(b[:S.shape[0]]), b[:S.shape[0]]) < 1e-10
+
+
+def test_splu_orders_every_factorisation_above_the_kept_size(tangents, monkeypatch):
+    A, b = tangents["nonsym"], tangents["b"]
+    monkeypatch.setattr(linear, "KEEP_ORDERING_ENTRIES", A.nnz - 1)
+    s = SpluSolver()
+    for k in range(2):
+        s.factor(_with_values(A, k))
+        assert s.ordering is None and not s.ordered
+        assert _rel_residual(_with_values(A, k), s.solve(b), b) < 1e-10
+    monkeypatch.setattr(linear, "KEEP_ORDERING_ENTRIES", A.nnz)
+    s.factor(A)
+    s.factor(A)
+    assert s.ordered
+
+
+def _nearly_dependent(A):
+    """A matrix of A's structure whose row 2i+1 is row 2i plus 1e-14 of itself (the two DOFs of
+    a node: the same pattern), for the first node where this makes a pivot negligible without
+    a negligible diagonal; and the DOFs the public ``splu`` names by their pivots."""
+    import scipy.sparse.linalg as spla
+    for i in range(10, A.shape[0] // 2):
+        j, k = 2 * i + 1, 2 * i
+        rows_j, rows_k = (slice(A.indptr[r], A.indptr[r + 1]) for r in (j, k))
+        if not np.array_equal(A.indices[rows_j], A.indices[rows_k]):
+            continue
+        W = A.copy()
+        W.data[rows_j] = W.data[rows_k] + 1e-14 * W.data[rows_j]
+        lu = spla.splu(sp.csc_matrix((W.data, W.indices, W.indptr), shape=W.shape),
+                       permc_spec="MMD_AT_PLUS_A")
+        pivots = np.abs(lu.U.diagonal())[lu.perm_c]
+        bad = np.flatnonzero(~(pivots > linear.PIVOT_RTOL * np.abs(W.diagonal()).max()))
+        if bad.size and not np.isin(bad, linear._suspects(W)).any():
+            return W, bad
+    raise AssertionError("no node pair makes a negligible pivot")
+
+
+def test_splu_names_a_small_pivot_by_its_column_with_the_kept_ordering(tangents):
+    """The pivot check maps the kept order's pivots back to the matrix's own columns: the DOFs
+    named are those scipy's own splu names by its pivots (not by a small diagonal)."""
+    A = tangents["nonsym"]
+    weak, bad = _nearly_dependent(A)
+    s = SpluSolver()
+    s.factor(A)
+    with pytest.raises(SingularMatrixError) as kept:
+        s.factor(sp.csr_matrix((weak.data, A.indices, A.indptr), shape=A.shape))
+    assert s.ordering.matches(sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape))
+    np.testing.assert_array_equal(kept.value.dofs, bad)
+    with pytest.raises(SingularMatrixError) as fresh:
+        SpluSolver().factor(weak)
+    np.testing.assert_array_equal(fresh.value.dofs, bad)
+
+
 @needs_pardiso
 @pytest.mark.parametrize("which, mtype", [("nonsym", 11), ("sym", -2)])
 def test_pardiso_agrees_with_splu(tangents, which, mtype):
@@ -460,3 +547,35 @@ def test_pardiso_builds_the_upper_triangle_only_for_a_symmetric_matrix(tangents)
     assert np.array_equal(p._ia, U.indptr) and np.array_equal(p._ja, U.indices)
     assert np.array_equal(p._data, U.data)
     assert _rel_residual(S, p.solve(b), b) < 1e-10
+
+
+def test_splu_reports_an_exactly_singular_matrix_alike_with_the_kept_ordering(tangents):
+    """A zero row (its entries kept as explicit zeros): SuperLU stops on an exactly zero pivot
+    (RuntimeError), on the kept order as on a fresh one, and the same DOFs are named."""
+    A = tangents["nonsym"]
+    j = 101
+    zero = A.copy()
+    zero.data[zero.indptr[j]:zero.indptr[j + 1]] = 0.0
+    s = SpluSolver()
+    s.factor(A)
+    with pytest.raises(SingularMatrixError) as kept:
+        s.factor(sp.csr_matrix((zero.data, A.indices, A.indptr), shape=A.shape))
+    with pytest.raises(SingularMatrixError) as fresh:
+        SpluSolver().factor(zero)
+    assert j in kept.value.dofs
+    np.testing.assert_array_equal(kept.value.dofs, fresh.value.dofs)
+    s.factor(A)                                     # and the kept ordering serves again
+    assert s.ordered
+    assert _rel_residual(A, s.solve(tangents["b"]), tangents["b"]) < 1e-10
+
+
+def test_splu_orders_every_factorisation_without_the_file_loaded_superlu(tangents, monkeypatch):
+    """Without scipy's SuperLU loaded by file, factors come from the public ``splu``, which
+    forces SymmetricMode with a NATURAL ordering: no ordering is kept."""
+    A, b = tangents["nonsym"], tangents["b"]
+    monkeypatch.setattr(linear, "superlu_module", lambda: None)
+    s = SpluSolver()
+    for k in range(2):
+        s.factor(_with_values(A, k))
+        assert s.ordering is None and not s.ordered
+        assert _rel_residual(_with_values(A, k), s.solve(b), b) < 1e-10

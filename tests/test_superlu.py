@@ -75,3 +75,84 @@ def test_a_factorisation_does_not_import_scipy_sparse_linalg():
             "assert (ours == spla.splu(A, permc_spec='MMD_AT_PLUS_A').solve(np.arange(40.0))).all()\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"     # and the file-loaded factor is scipy's
+
+
+# -- the kept column ordering (superlu.KeptOrdering, used by linear.SpluSolver) -------------
+
+def _same_values(A, seed):
+    """A matrix of A's structure with other values (a later Newton iteration's tangent)."""
+    B = A.copy()
+    B.data = B.data * (1.0 + 0.3 * np.random.default_rng(seed).standard_normal(B.nnz))
+    return B
+
+
+def _press_slide_tangent():
+    """K_ff of press_slide.dat pressed and sliding (non-symmetric: friction, follower
+    pressure), as CSC of its transpose: the matrix SpluSolver hands SuperLU."""
+    from pathlib import Path
+
+    from lagamine_py.deck import load_deck
+    from lagamine_py.elements.base import StepContext
+    from lagamine_py.solver.linear import FreeDofs
+    from lagamine_py.solver.problem import build_problem
+    model = load_deck(Path(__file__).resolve().parents[1] / "decks" / "press_slide.dat")
+    problem = build_problem(model)
+    xy = model.coords
+    u = np.zeros(2 * len(xy))
+    u[0::2] = 1e-3 * xy[:, 0] / 40.0
+    u[1::2] = -2e-3 * xy[:, 1] / 20.0 - 1e-4
+    problem.set_pressures({name: 200.0 for name in problem.pressure_groups})
+    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0,
+                      foundation_old={"FLAT": np.zeros(2)}, foundation_new={"FLAT": np.zeros(2)})
+    ev = problem.evaluate(u, np.zeros_like(u), problem.init_states(), ctx, True)
+    A = FreeDofs(problem.pattern, 2 * np.flatnonzero(xy[:, 0] > 40 - 1e-9)).kff(ev.data)
+    return sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
+
+
+@pytest.fixture(scope="module")
+def fe_tangent():
+    return _press_slide_tangent()
+
+
+def _assert_same_factor(lu, ref, order, b):
+    """``lu`` (columns in ``order``'s order, NATURAL) is ``ref`` (MMD_AT_PLUS_A) bit for bit."""
+    np.testing.assert_array_equal(lu.perm_c, np.arange(len(lu.perm_c)))   # no reordering
+    np.testing.assert_array_equal(lu.perm_r, ref.perm_r)
+    for a, r in ((lu.L, ref.L), (lu.U, ref.U)):
+        np.testing.assert_array_equal(a.indptr, r.indptr)
+        np.testing.assert_array_equal(a.indices, r.indices)
+        np.testing.assert_array_equal(a.data, r.data)
+    np.testing.assert_array_equal(lu.solve(b[order.columns], trans="T"), ref.solve(b, trans="T"))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_kept_ordering_gives_the_mmd_factor_bit_for_bit(seed):
+    A = _matrix(80, seed)
+    order = superlu.KeptOrdering(A, superlu.splu(A))
+    b = np.random.default_rng(5).standard_normal(A.shape[0])
+    for k in range(3):                            # later matrices of the structure
+        B = _same_values(A, 10 * seed + k)
+        _assert_same_factor(order.factor(B.data), superlu.splu(B), order, b)
+
+
+def test_kept_ordering_on_a_tangent_of_the_main_job(fe_tangent):
+    A = fe_tangent
+    order = superlu.KeptOrdering(A, superlu.splu(A))
+    assert not np.array_equal(order.position, np.arange(A.shape[0]))     # it does reorder
+    b = np.random.default_rng(6).standard_normal(A.shape[0])
+    for k in range(2):
+        B = _same_values(A, k)
+        _assert_same_factor(order.factor(B.data), superlu.splu(B), order, b)
+        # and it solves B^T x = b (a check that does not rest on the reference factor)
+        x = order.factor(B.data).solve(b[order.columns], trans="T")
+        np.testing.assert_allclose(B.T @ x, b, rtol=0, atol=1e-8 * np.abs(b).max())
+
+
+def test_kept_ordering_recognises_its_structure(fe_tangent):
+    A = fe_tangent
+    order = superlu.KeptOrdering(A, superlu.splu(A))
+    assert order.matches(A) and order.matches(_same_values(A, 3))       # same arrays, equal arrays
+    other = A.tolil()
+    other[0, A.shape[0] - 1] = 1.0                                      # one more entry
+    assert not order.matches(other.tocsc())
+    assert not order.matches(A[:-1, :-1].tocsc())

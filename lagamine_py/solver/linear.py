@@ -30,7 +30,7 @@ from ..core.errors import SingularMatrixError
 from ..core.plugin import Plugin
 from ..core.threads import pin_threads
 from .pattern import index_dtype
-from .superlu import splu
+from .superlu import KeptOrdering, splu, superlu_module
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
@@ -49,6 +49,13 @@ SOLVE_RTOL = 1e-6           # PARDISO: |A x - b| above this times |b| means a si
 #: main job, 849 DOFs and 74k factor entries: 0.3 ms a call in ``malloc_trim``, ~70 ms of
 #: its 0.46 s of increments in all; docs/performance.md)
 TRIM_FILL = 200_000
+#: SPLU keeps a structure's column ordering (:class:`KeptOrdering`) up to this many entries of
+#: the matrix: the ordering is 12-13 % of a factorisation of the main job's (24 800 entries)
+#: and 8-15 % of 40x20's (152 000), and the kept arrays and the permuted values take ~20 bytes
+#: an entry; above, it is ordered afresh at every factorisation as before (kept, 40x20 held
+#: +2.0-2.6 MiB at a peak that sits at CalculiX's, for no measurable CPU: most of its solves
+#: reuse a factor through GMRES; docs/performance.md, "Start-up, first run, memory")
+KEEP_ORDERING_ENTRIES = 100_000
 
 
 class FreeDofs:
@@ -187,9 +194,15 @@ class LinearSolver(Plugin):
 
 
 class SpluSolver(LinearSolver):
-    """SuperLU (scipy splu) with the MMD_AT_PLUS_A ordering."""
+    """SuperLU (scipy splu) with the MMD_AT_PLUS_A ordering, computed at the first
+    factorisation of a structure and kept for the next ones (:class:`KeptOrdering`: the same
+    factor, bit for bit, without ordering again)."""
 
     lu = None
+    #: the kept ordering of the structure last factorised (None: not kept yet)
+    ordering: KeptOrdering | None = None
+    #: the factor in hand is of the columns in ``ordering``'s order (its solves permute ``b``)
+    ordered = False
 
     def factor(self, A: sp.csr_matrix) -> None:
         # The CSR arrays of A are the CSC arrays of A^T: factor A^T without any conversion
@@ -204,19 +217,40 @@ class SpluSolver(LinearSolver):
         self.lu = None
         if fill >= TRIM_FILL:
             return_free_heap()
+        order = self.ordering
         try:
-            self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
+            if order is not None and order.matches(At):
+                self.lu = order.factor(At.data)
+                self.ordered = True
+            else:
+                self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
+                self.ordered = False
+                order = self.ordering = _kept_ordering(At, self.lu)
         except RuntimeError:                # "Factor is exactly singular"
             raise SingularMatrixError(_exact_singular_dofs(At, scale), "zero pivot") from None
         # Pr A Pc = L U with Pc[j, perm_c[j]] = 1: original column j has pivot U[perm_c[j]]
-        pivots = np.abs(self.lu.U.diagonal())[self.lu.perm_c]
+        position = order.position if order is not None else self.lu.perm_c
+        pivots = np.abs(self.lu.U.diagonal())[position]
         small = ~(pivots > PIVOT_RTOL * scale)          # also catches NaN
         if small.any():
             bad = np.flatnonzero(small)
             raise SingularMatrixError(np.union1d(bad, _suspects(A)), "zero pivot")
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        return self.lu.solve(np.asarray(b, float), trans="T")
+        b = np.asarray(b, float)
+        if self.ordered:
+            b = b[self.ordering.columns]
+        return self.lu.solve(b, trans="T")
+
+
+def _kept_ordering(At: sp.csc_matrix, lu) -> KeptOrdering | None:
+    """``lu``'s column ordering kept for the structure of ``At``; None when the matrix is above
+    ``KEEP_ORDERING_ENTRIES``, scipy's SuperLU is not loaded by file (the public ``splu``
+    forces ``SymmetricMode`` with a NATURAL ordering) or ``At`` is not canonical (SuperLU
+    factorised a summed copy)."""
+    if At.nnz > KEEP_ORDERING_ENTRIES or superlu_module() is None or not At.has_canonical_format:
+        return None
+    return KeptOrdering(At, lu)
 
 
 @functools.lru_cache(maxsize=None)
