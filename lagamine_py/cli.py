@@ -113,48 +113,8 @@ def _parser() -> argparse.ArgumentParser:
     return ap
 
 
-#: the commands whose process ends by :func:`_quick_exit` when :func:`main` is the process's
-#: command (the console script, ``python -m lagamine_py``)
-QUICK_EXIT = ("run", "check")
-
-
 def main(argv: list[str] | None = None) -> int:
-    """The command line ``argv`` (default: the process's own, ``sys.argv[1:]``); returns the
-    exit status.  With the process's own command line, ``run`` and ``check`` end the process
-    themselves (:func:`_quick_exit`) instead of returning."""
     args = _parser().parse_args(argv)
-    status = _dispatch(args)
-    if argv is None and args.command in QUICK_EXIT:
-        _quick_exit(status)
-    return status
-
-
-def _quick_exit(status: int) -> int:
-    """End the process with ``status`` as ``sys.exit`` would, without the interpreter's
-    teardown: deleting the ~1 000 modules of a run and their objects one by one is ~9 ms of the
-    main job's 0.56 s, for memory the system takes back at once.  What the teardown does that
-    matters is done here: the ``atexit`` handlers run (``logging``'s flush and close among
-    them), then the standard streams are flushed, then ``os._exit``.  The commands close every
-    file they write, and a run waits for the thread removing old outputs (``Claim.release``);
-    should any other non-daemon thread still run, the interpreter's own exit (which waits for
-    it) is kept: the status is returned."""
-    import atexit
-    import os
-    import threading
-    if any(t is not threading.main_thread() and t.is_alive() and not t.daemon
-           for t in threading.enumerate()):
-        return status
-    atexit._run_exitfuncs()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):       # a reader gone, a stream closed: nothing to say
-            pass
-    os._exit(status)
-
-
-def _dispatch(args) -> int:
-    """Run the sub-command of ``args``; its exit status, errors turned into their message."""
     handler = {"run": _cmd_run, "check": _cmd_check, "plugins": _cmd_plugins,
                "compare": _cmd_compare, "plot": _cmd_plot, "sweep": _cmd_sweep,
                "compile": _cmd_compile}[args.command]
