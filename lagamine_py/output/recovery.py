@@ -103,8 +103,8 @@ def nodal_values(n_nodes: int, blocks, bounded: bool = True,
         plan = RecoveryPlan(n_nodes, conns)
     k = blocks[0][2].shape[2]
     # (a, q) @ (e, q, k): one batched product per block
-    ext = np.concatenate([(plan.recovery_matrix(el, g.shape[1]) @ g).reshape(-1, k)
-                          for el, _, g in blocks])                    # (incidences, k)
+    ext = [(plan.recovery_matrix(el, g.shape[1]) @ g).reshape(-1, k) for el, _, g in blocks]
+    ext = ext[0] if len(ext) == 1 else np.concatenate(ext)           # (incidences, k)
     out = np.asarray(plan.average @ ext)
     if bounded:
         lo = np.concatenate([_gauss_range(np.minimum, g) for _, _, g in blocks])    # (e, k)
