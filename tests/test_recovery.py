@@ -125,3 +125,73 @@ def test_a_plan_computes_each_recovery_matrix_once():
     assert calls == [9]
     assert plan.gauss_weights(Counted) is plan.gauss_weights(Counted)
     assert np.array_equal(plan.gauss_weights(Counted), Q8PlaneStrain.gauss_weights())
+
+
+def _q8_grid(nx, ny):
+    """Q8 connectivity of an nx x ny grid on the (2 nx + 1) x (2 ny + 1) lattice of nodes
+    (the element centres are nodes of no element) and the lattice's node count."""
+    row = 2 * nx + 1
+
+    def n(i, j):
+        return j * row + i
+    conn = [[n(2 * i, 2 * j), n(2 * i + 2, 2 * j), n(2 * i + 2, 2 * j + 2), n(2 * i, 2 * j + 2),
+             n(2 * i + 1, 2 * j), n(2 * i + 2, 2 * j + 1), n(2 * i + 1, 2 * j + 2),
+             n(2 * i, 2 * j + 1)] for j in range(ny) for i in range(nx)]
+    return np.array(conn), row * (2 * ny + 1)
+
+
+def test_patch_ranges_are_each_nodes_gauss_extremes_bit_for_bit():
+    """The bounded recovery (nodes grouped by their number of elements, the ranges by
+    element-wise minima and maxima over whole columns) clips each node to exactly the
+    [min, max] of the Gauss values of its elements, found here node by node: the same bits,
+    signed zeros and NaN included, on two blocks (Q8 and T6) sharing nodes, with nodes of 1, 2,
+    3, 4 and 5 elements and nodes of none (left at 0)."""
+    from lagamine_py.elements.quad import Q8PlaneStrain
+    from lagamine_py.elements.t6 import T6PlaneStrain
+    from lagamine_py.output.recovery import RecoveryPlan, nodal_values
+
+    q8, n = _q8_grid(3, 2)
+    # two T6 sharing nodes with the grid: corner 0 (then in 3 elements), the interior corner
+    # node 16 (in 5); node n + 3 is in none
+    t6 = np.array([[0, 2, n, 1, n + 1, n + 2], [0, n, 16, n + 2, n + 4, n + 5]])
+    n_nodes = n + 6
+    rng = np.random.default_rng(7)
+    gq = rng.normal(size=(len(q8), 9, 3))
+    gt = rng.normal(size=(len(t6), 3, 3))
+    gq[0, :, 0] = 0.0                     # a node whose range ends at +0.0 on one side
+    gq[1, :, 0] = -0.0                    # ... and -0.0 on the other
+    gq[2, 4, 1] = np.nan                  # NaN propagates to the nodes of element 2
+    blocks = [(Q8PlaneStrain, q8, gq), (T6PlaneStrain, t6, gt)]
+    plain = nodal_values(n_nodes, blocks, bounded=False)
+    plan = RecoveryPlan(n_nodes, [q8, t6])
+    assert {len(e) for _, e in plan.patches} == {1, 2, 3, 4, 5}
+    got = nodal_values(n_nodes, blocks, plan=plan)
+
+    expected = plain.copy()
+    for node in range(n_nodes):
+        patch = [g[e] for (_, conn, g) in blocks for e in np.flatnonzero((conn == node).any(1))]
+        if patch:
+            lo = np.min([p.min(axis=0) for p in patch], axis=0)
+            hi = np.max([p.max(axis=0) for p in patch], axis=0)
+            expected[node] = np.clip(plain[node], lo, hi)
+    assert np.array_equal(got.view(np.int64), expected.view(np.int64))     # bits: -0.0, NaN
+    assert np.isnan(got[q8[2], 1]).all() and not np.isnan(np.delete(got[:, 1], q8[2])).any()
+    unused = np.setdiff1d(np.arange(n_nodes), np.concatenate([q8.ravel(), t6.ravel()]))
+    assert len(unused) and not got[unused].any()
+    assert (got != plain).any()           # the clipping acted somewhere
+
+
+def test_von_mises_closed_forms_and_the_reductions_bits():
+    """``von_mises``: uniaxial sigma -> |sigma|, pure shear tau -> sqrt(3) |tau|, a pressure
+    -> 0 (closed forms); and on random stresses the same bits as the mean and the sum over the
+    short axis it replaced (so the VTU files did not change): those reductions add
+    ``(s11 + s22) + s33``."""
+    rng = np.random.default_rng(3)
+    sigma, tau, p = 123.0, 45.0, 67.0
+    stresses = np.array([[sigma, 0, 0, 0], [0, 0, -sigma, 0], [0, 0, 0, tau], [-p, -p, -p, 0]])
+    np.testing.assert_allclose(von_mises(stresses), [sigma, sigma, np.sqrt(3) * tau, 0],
+                               rtol=1e-15, atol=1e-13)
+    s = rng.normal(size=(2000, 9, 4)) * 10.0 ** rng.integers(-3, 4, size=(2000, 9, 1))
+    dev = s - s[..., :3].mean(-1, keepdims=True) * np.array([1.0, 1.0, 1.0, 0.0])
+    reduced = np.sqrt(1.5 * (np.sum(dev[..., :3] ** 2, -1) + 2.0 * dev[..., 3] ** 2))
+    assert np.array_equal(von_mises(s).view(np.int64), reduced.view(np.int64))

@@ -51,6 +51,7 @@ class RecoveryPlan:
         order = np.argsort(idx, kind="stable")
         self.nodes, self.start, count = np.unique(idx[order], return_index=True, return_counts=True)
         self.elem_sorted = elem[order]
+        self.patches = _patches(self.nodes, self.start, count, self.elem_sorted)
         self.average = sp.csr_matrix((1.0 / count[np.searchsorted(self.nodes, idx)],
                                       (idx, np.arange(len(idx)))), shape=(n_nodes, len(idx)))
         self._conns = conns
@@ -102,15 +103,45 @@ def nodal_values(n_nodes: int, blocks, bounded: bool = True,
         plan = RecoveryPlan(n_nodes, conns)
     k = blocks[0][2].shape[2]
     # (a, q) @ (e, q, k): one batched product per block
-    ext = np.concatenate([(plan.recovery_matrix(el, g.shape[1]) @ g).reshape(-1, k)
-                          for el, _, g in blocks])                    # (incidences, k)
+    ext = [(plan.recovery_matrix(el, g.shape[1]) @ g).reshape(-1, k) for el, _, g in blocks]
+    ext = ext[0] if len(ext) == 1 else np.concatenate(ext)           # (incidences, k)
     out = np.asarray(plan.average @ ext)
     if bounded:
-        # element ranges (k, e), gathered per sorted incidence and reduced per node along the
-        # contiguous axis (a reduceat over rows of a (incidences, k) array is 3x slower)
-        lo = np.concatenate([g.min(axis=1) for _, _, g in blocks]).T[:, plan.elem_sorted]
-        hi = np.concatenate([g.max(axis=1) for _, _, g in blocks]).T[:, plan.elem_sorted]
-        nodes = plan.nodes
-        out[nodes] = np.clip(out[nodes], np.minimum.reduceat(lo, plan.start, axis=1).T,
-                             np.maximum.reduceat(hi, plan.start, axis=1).T)
+        lo = np.concatenate([_gauss_range(np.minimum, g) for _, _, g in blocks])    # (e, k)
+        hi = np.concatenate([_gauss_range(np.maximum, g) for _, _, g in blocks])
+        for nodes, elems in plan.patches:
+            out[nodes] = np.clip(np.take(out, nodes, axis=0), _patch_range(np.minimum, lo, elems),
+                                 _patch_range(np.maximum, hi, elems))
+    return out
+
+
+def _patches(nodes, start, count, elem_sorted) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The nodes grouped by their number of elements v: ``(nodes (m,), elements (v, m))``,
+    each node's elements in its sorted incidences' order.  A node's patch range is then v - 1
+    element-wise minima over whole columns, in the order a ``reduceat`` over the sorted
+    incidences takes them (the same values, -0.0 and NaN included): 5x cheaper than that
+    ``reduceat``, whose segments are 1 to 4 incidences long."""
+    groups = []
+    for v in np.unique(count):
+        which = np.flatnonzero(count == v)
+        groups.append((nodes[which], elem_sorted[start[which] + np.arange(v)[:, None]]))
+    return groups
+
+
+def _gauss_range(extreme, g: np.ndarray) -> np.ndarray:
+    """``g.min(axis=1)`` (``extreme`` ``np.minimum``) or ``.max`` of Gauss values (e, q, k):
+    the q - 1 element-wise steps the reduction takes, on (e, k) slices (a reduction over the
+    middle axis of length q is 3x slower)."""
+    out = g[:, 0].copy()
+    for q in range(1, g.shape[1]):
+        extreme(out, g[:, q], out=out)
+    return out
+
+
+def _patch_range(extreme, values: np.ndarray, elems: np.ndarray) -> np.ndarray:
+    """Extreme over each node's elements (``elems`` (v, m)) of element values (e, k)."""
+    gathered = np.take(values, elems, axis=0)          # (v, m, k): one gather, 3x cheaper
+    out = gathered[0]                                  # than a fancy index per column
+    for column in gathered[1:]:
+        extreme(out, column, out=out)
     return out

@@ -142,8 +142,8 @@ def recovered(n_nodes: int, cells: list[CellBlock], fields, bounded: bool = True
     weights = [plan.gauss_weights(c.element) if plan is not None else c.element.gauss_weights()
                for c in cells]
     for batch in _batches(fields, n_values):
-        gauss = [np.concatenate([np.asarray(f[2][b], float).reshape(len(c.conn), -1, f[1])
-                                 for f in batch], axis=-1)
+        gauss = [_joined([np.asarray(f[2][b], float).reshape(len(c.conn), -1, f[1])
+                          for f in batch])
                  for b, c in enumerate(cells)]                       # (e, q, k) per block
         values = nodal_values(n_nodes, [(c.element, c.conn, g) for c, g in zip(cells, gauss)],
                               bounded, plan)
@@ -169,6 +169,12 @@ def _batches(fields, n_values: int = 0):
         return [list(fields)]
     scalars = [f for f in fields if f[1] == 1]
     return [[f] for f in fields if f[1] != 1] + ([scalars] if scalars else [])
+
+
+def _joined(parts: list[np.ndarray]) -> np.ndarray:
+    """The parts joined along their last axis; a single part as it is (read only: a tensor
+    field's batch at 320x160 is 15 MB that a copy would pass over twice)."""
+    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
 
 
 def _split(values: np.ndarray, fields):
