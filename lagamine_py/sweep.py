@@ -17,8 +17,8 @@ Where the points run:
 
 ``DIR/sweep.csv`` gets one row per finished point, rewritten (atomically) each time a point
 finishes: ``point`` (its directory name), the parameters, ``status`` (the run's exit code: 0 ok,
-2 deck error, 3 did not converge, 1 other), ``reason`` (the last line the run printed: its
-closing message, or the error), ``wall_s`` and ``cpu_s`` (of the run's process, from
+2 deck error, 3 did not converge, 1 other), ``reason`` (the first line of the run's closing
+message, or a crash's error), ``wall_s`` and ``cpu_s`` (of the run's process, from
 ``os.wait4``), ``newton_iterations`` (sum of the ``.sta`` iterations column, failed attempts
 included: the work done), ``increments`` (converged) and ``failed_attempts``, then the deck's
 ``*CHECK`` columns from :func:`lagamine_py.checks.check_columns` (``<check>_error``, measured
