@@ -236,7 +236,7 @@ CONTROL_PARAMS: tuple[Param, ...] = (
           doc="first iterate of an increment: the last increment of the step, scaled, its slip fronts moved on at their speed (LINEAR), or none"),
     Param("FLIPFLOP", int, 4, (1, 100), doc="contact status switches or slip reversals of a point before it is frozen"),
     Param("SDI", bool, True,
-          doc="a residual growing while contact points change state is not a divergence (severe discontinuity iterations; MAXIT still bounds the increment)"),
+          doc="a residual growing while contact points change state is not a divergence (severe discontinuity iterations) unless it grows over 6 iterations running; MAXIT still bounds the increment"),
     Param("KRYLOV", int, 4, (0, 200),
           doc="GMRES steps on the factor in hand before the tangent is factorised anew (0: every Newton iteration factorises)"),
     Param("KRYLOVDOFS", int, 5000, (0, 10**9),

@@ -17,8 +17,8 @@ Where the points run:
 
 ``DIR/sweep.csv`` gets one row per finished point, rewritten (atomically) each time a point
 finishes: ``point`` (its directory name), the parameters, ``status`` (the run's exit code: 0 ok,
-2 deck error, 3 did not converge, 1 other), ``reason`` (the last line the run printed: its
-closing message, or the error), ``wall_s`` and ``cpu_s`` (of the run's process, from
+2 deck error, 3 did not converge, 1 other), ``reason`` (the first line of the run's closing
+message, or a crash's error), ``wall_s`` and ``cpu_s`` (of the run's process, from
 ``os.wait4``), ``newton_iterations`` (sum of the ``.sta`` iterations column, failed attempts
 included: the work done), ``increments`` (converged) and ``failed_attempts``, then the deck's
 ``*CHECK`` columns from :func:`lagamine_py.checks.check_columns` (``<check>_error``, measured
@@ -29,8 +29,9 @@ the deck it ran: absolute path and digest of the expanded text with the point's 
 values, :func:`lagamine_py.deck.deck_digest`).  A rerun of the same sweep (or of a grid extended
 by more values) skips the points that ran to the end (status 0) or stopped on non-convergence
 (status 3) *with the same deck*, reusing their rows, so an interrupted sweep resumes where it
-stopped; a point run with another deck, or with this deck before it (an included file, a
-parameter default) changed, runs again, and the sweep says so.  Points with a deck error (2),
+stopped; a point run with another deck, with this deck before it (an included file, a
+parameter default) changed, or by another version of the program (:func:`program_digest`: the
+package's source, Python's, NumPy's and SciPy's versions), runs again, and the sweep says so.  Points with a deck error (2),
 a crash (1) or a signal are run again, on the view that their deck or installation has been
 fixed in between.  A point whose worker failed (an exception, a lost dask worker) is recorded
 in sweep.csv with status 1 and the reason, and leaves no ``point.json``.
@@ -43,6 +44,8 @@ sweep.csv, and the exit status is 130; a rerun resumes.
 from __future__ import annotations
 
 import csv
+import functools
+import hashlib
 import itertools
 import json
 import math
@@ -235,18 +238,26 @@ def stop_runs(sig=signal.SIGTERM) -> None:
             run.stop(action)
 
 
+#: how the first line of ``run``'s closing message starts (the lines after it are its summary:
+#: contact totals, where the results are, the wall time)
+CLOSING = "lagamine-py:"
+
+
 def _last_line(path: Path) -> str:
+    """The last closing message's first line in ``path``, else its last non-blank line (a
+    crash's exception), else ''."""
     try:
         lines = [ln.strip() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
     except OSError:
         return ""
-    return lines[-1] if lines else ""
+    closing = [ln for ln in lines if ln.startswith(CLOSING)]
+    return closing[-1] if closing else (lines[-1] if lines else "")
 
 
 def _reason(pointdir: Path, status: int) -> str:
-    """Why the run stopped: the last line of its stderr (``run`` prints its closing message there
-    when it fails, a crash its exception), else of its stdout (the closing message of a run that
-    finished), else of the run's own log."""
+    """Why the run stopped: the closing message in its stderr (``run`` prints it there when it
+    fails; a crash, its exception), else in its stdout (the closing message of a run that
+    finished), else the last line of the run's own log."""
     if status < 0:
         return f"killed by signal {signal.Signals(-status).name}"
     try:
@@ -350,10 +361,26 @@ def stale_deck(pointdir: Path, digest: str) -> bool:
 
 
 def point_digest(deck: Path, params: dict[str, str]) -> str:
-    """The digest of the deck's expanded text with the point's parameter values (errors in
-    the deck do not matter here: they are the checks' business)."""
+    """The digest of what decides a point's results: the deck's expanded text with the point's
+    parameter values (errors in the deck do not matter here: they are the checks' business)
+    and the program that runs it (:func:`program_digest`)."""
     from .deck import deck_digest
-    return deck_digest(Path(deck), dict(params))
+    text = deck_digest(Path(deck), dict(params)) + program_digest()
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+@functools.lru_cache(maxsize=None)
+def program_digest() -> str:
+    """The digest of this lagamine_py's source (every module of the package, by relative path
+    and bytes) and of the Python, NumPy and SciPy versions: a point finished by another
+    version of the program is not reused (plugins of other packages are not covered)."""
+    import numpy
+    import scipy
+    h = hashlib.sha256(f"{sys.version}|{numpy.__version__}|{scipy.__version__}".encode())
+    root = Path(__file__).resolve().parent
+    for path in sorted(root.rglob("*.py")):
+        h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
 
 
 def load_point_checks(deck: Path, params: dict[str, str]) -> list[dict[str, Any]]:
@@ -504,8 +531,9 @@ def run_sweep(deck: Path, axes: dict[str, list[str]], outdir: Path, jobs: int = 
         log(f"sweep: {skipped} of {len(points)} points already finished in {outdir} with this "
             f"deck; skipping them")
     if stale:
-        log(f"sweep: {len(stale)} point(s) ran with another deck, or with this deck before it "
-            f"changed (its text, an included file or a parameter value); running them again: "
+        log(f"sweep: {len(stale)} point(s) ran with another deck, with this deck before it "
+            f"changed (its text, an included file or a parameter value), or with another version "
+            f"of lagamine_py, NumPy or SciPy; running them again: "
             f"{', '.join(stale[:5])}{' ...' if len(stale) > 5 else ''}")
 
     counter = itertools.count(skipped + 1)

@@ -52,6 +52,9 @@ STAND_IN = textwrap.dedent('''
         sta.append("1,PRESS,2,1.0,0.5,12,1e3,1,yes,residual diverged")
         (out / "stand_in.sta").write_text("\\n".join(sta) + "\\n")
         print("lagamine-py: step 1 PRESS did not converge at time 0.5: residual diverged", file=sys.stderr)
+        # the summary the real closing message goes on with
+        print("  contact B->F: P = 2000, T = 0, T/P = 0", file=sys.stderr)
+        print("  wall time 0.1 s", file=sys.stderr)
         sys.exit(3)
     k = int(float(params.get("KP", "1e6")) / 1e6)
     b = float(params.get("B", 0))
@@ -64,6 +67,7 @@ STAND_IN = textwrap.dedent('''
     (out / "contact_totals.csv").write_text(
         f"step,increment,time,contact,P,T\\n1,1,1.0,B->F,{P!r},{T!r}\\n")
     print("lagamine-py: 1 step finished")
+    print("  wall time 0.1 s")
 ''')
 
 
@@ -144,6 +148,16 @@ def test_run_point_reports_why_a_run_stopped(tmp_path, stand_in):
     out = sw.run_point(deck, {"KP": "bad"}, tmp_path / "pt", command=command)
     assert out["status"] == 3
     assert out["reason"] == "lagamine-py: step 1 PRESS did not converge at time 0.5: residual diverged"
+
+
+def test_run_point_reports_the_real_closing_message(tmp_path):
+    """The program's own closing message (not the stand-in's): its first line is the reason, not
+    the summary lines after it (contact totals, results, wall time)."""
+    deck = Path(__file__).resolve().parents[1] / "tools" / "study_decks" / "block_study.dat"
+    out = sw.run_point(deck, {"DT": "1", "DTMIN": "1", "KP": "2e8", "KT": "2e8"}, tmp_path / "pt")
+    assert out["status"] == 3
+    assert out["reason"].startswith("lagamine-py: step 2 (PUSH) could not converge")
+    assert "last failure" in out["reason"]
 
 
 def test_run_point_reports_a_killed_run(tmp_path, stand_in):
@@ -332,7 +346,7 @@ def test_points_of_a_changed_or_another_deck_run_again(tmp_path, stand_in, capsy
     edited = Counting(command)
     assert sw.sweep_main(deck, ["B=0,5"], out, runner=edited) == 0
     assert edited.ran == [{"B": "0"}, {"B": "5"}]
-    assert "2 point(s) ran with another deck, or with this deck before it changed" in \
+    assert "2 point(s) ran with another deck, with this deck before it changed" in \
         capsys.readouterr().out
     other = tmp_path / "other.dat"
     other.write_text("*HEADING\nanother deck\n")
@@ -342,6 +356,36 @@ def test_points_of_a_changed_or_another_deck_run_again(tmp_path, stand_in, capsy
     assert stored["deck"]["path"] == str(other.resolve())
     check = json.loads((out / "B=5" / "point.json").read_text())["deck"]["digest"]
     assert check == sw.point_digest(other, {"B": "5"}) != sw.point_digest(deck, {"B": "5"})
+
+
+def test_points_of_another_program_version_run_again(tmp_path, stand_in, capsys, monkeypatch):
+    """A point finished by another version of the program (its source, or NumPy's, SciPy's or
+    Python's version) is not reused: the same deck swept again runs every point."""
+    command, deck = stand_in
+    out = tmp_path / "sweep"
+    first = Counting(command)
+    assert sw.sweep_main(deck, ["B=0,5"], out, runner=first) == 0 and len(first.ran) == 2
+    capsys.readouterr()
+    monkeypatch.setattr(sw, "program_digest", lambda: "another version")
+    upgraded = Counting(command)
+    assert sw.sweep_main(deck, ["B=0,5"], out, runner=upgraded) == 0
+    assert upgraded.ran == [{"B": "0"}, {"B": "5"}]
+    assert "or with another version of lagamine_py" in capsys.readouterr().out
+
+
+def test_the_program_digest_covers_every_module(tmp_path, monkeypatch):
+    """program_digest reads every module of the package: a changed byte in any changes it."""
+    import lagamine_py
+    root = Path(lagamine_py.__file__).resolve().parent
+    base = sw.program_digest.__wrapped__()
+    copy = tmp_path / "lagamine_py"
+    import shutil
+    shutil.copytree(root, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(sw, "__file__", str(copy / "sweep.py"))
+    assert sw.program_digest.__wrapped__() == base
+    target = copy / "solver" / "newton.py"
+    target.write_bytes(target.read_bytes() + b"\n")
+    assert sw.program_digest.__wrapped__() != base
 
 
 def test_a_second_sweep_into_the_same_directory_is_refused(tmp_path, stand_in, capsys):

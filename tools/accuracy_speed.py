@@ -270,6 +270,7 @@ def classic_meshes(full: bool = False) -> None:
     half_cylinder."""
     sys.path.insert(0, str(ROOT / "tools"))
     from make_meshes import half_cylinder, write_inc
+    (STUDY / "meshes").mkdir(exist_ok=True)       # a fresh checkout has none (hertz_meshes makes it too)
     for tag, (n_zone, n_arc, n_rad) in CLASSIC_MESHES.items():
         path = STUDY / "meshes" / f"hertz50{'h' if full else ''}_{tag}.inc"
         if path.exists():
