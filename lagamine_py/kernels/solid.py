@@ -35,12 +35,7 @@ __all__ = ["scratch_arrays", "solid_group", "start_group"]
 # _nrt=False: no reference counting.  The kernels allocate nothing (the caller passes the work
 # arrays), and without it every array handed to an inlined helper costs atomic increments and
 # decrements per Gauss point: measured 2.35 -> 0.34 us per Q8 element (small strain, no tangent).
-# fastmath={"contract"}: a product and the sum it feeds may be one fused multiply-add (one
-# rounding instead of two; nothing else of fastmath: no reassociation, NaN and infinities kept).
-# The tangent's sums of products are most of an element's arithmetic: 4.77 -> 4.33 us per
-# plastic NLGEOM Q8 (`tools/bench.py assembly`'s group at 160x80); the twin tests' largest
-# difference from NumPy 2.4e-13 -> 2.5e-13 of the array's largest entry (their RTOL 1e-12).
-_JIT = dict(cache=True, fastmath={"contract"}, error_model="numpy", nogil=True, _nrt=False)
+_JIT = dict(cache=True, fastmath=False, error_model="numpy", nogil=True, _nrt=False)
 
 
 def scratch_arrays(nen: int, nq: int) -> tuple:
