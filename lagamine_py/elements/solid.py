@@ -112,17 +112,17 @@ def _log_b_value(b2: np.ndarray):
     return E, (lam, v0, v1, P0, P1)
 
 
-def _log_b_derivative(lam, v0, v1, P0, P1, rows=None, work=None):
+def _log_b_derivative(lam, v0, v1, P0, P1, rows=None):
     """``C`` (..., 2, 2, 2, 2) of :func:`log_b` from the parts of :func:`_log_b_value`; with
     ``rows`` (r,) indices into the flattened ij, ``C``'s rows ij = ``rows`` only, as
-    (..., r, 2, 2) (what the NLGEOM tangent reads: no copy of the whole ``C`` to pick them),
-    then written into ``work[0]`` with ``work[1]`` for the terms if ``work`` is given."""
+    (..., r, 2, 2) (what the NLGEOM tangent reads: no copy of the whole ``C`` to pick them).
+    The second and third terms are formed in one buffer."""
     m = 0.5 * (lam[..., 0] + lam[..., 1])
     ratio = _atanh_over_x(0.5 * (lam[..., 0] - lam[..., 1]) / m)
     S = v0[..., :, None] * v1[..., None, :]
     S = S + np.swapaxes(S, -1, -2)
-    C, term = (None, None) if work is None else work
-    C = _outer22(P0, 0.5 / lam[..., 0], rows, C)
+    C = _outer22(P0, 0.5 / lam[..., 0], rows)
+    term = np.empty_like(C)
     C += _outer22(P1, 0.5 / lam[..., 1], rows, term)
     C += _outer22(S, 0.25 * ratio / m, rows, term)
     return C
@@ -527,9 +527,7 @@ class SolidElement(Element):
         ns = len(rows)
         if Gt is None:
             Gt = self._operator_t(dNdx, r, ns)
-        C = _log_b_derivative(*log_parts, rows=_IJ_OF_ROW[rows],           # (e, q, s, k, n)
-                              work=(np.zeros((ne, nq, ns, 2, 2)),
-                                    np.zeros((ne, nq, ns, 2, 2))))
+        C = _log_b_derivative(*log_parts, rows=_IJ_OF_ROW[rows])           # (e, q, s, k, n)
 
         # material part: d eps_trial / d u = C : (l b + b l^T), l = grad_x du, i.e.
         # dE_ij / du_bk = 2 sum_n C_ijkn h_bn (C symmetric in kn): one (b, n) @ (n, k) product
