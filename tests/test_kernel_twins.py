@@ -1212,4 +1212,3 @@ def test_twin(twin):
     visited = run_twin(twin)
     missing = [b for b in twin.required() if not visited[b]]
     assert not missing, f"{twin.entry}: batches visit no point of {missing}"
-
