@@ -271,6 +271,24 @@ def test_point_contact_under_a_force_needs_the_stabilisation(tmp_path):
     assert "*CONTACT STABILIZATION" in out.message
 
 
+def test_singular_tangent_of_an_all_slipping_contact_is_explained_as_such(tmp_path):
+    """The Coulomb block of the stability study at KT = 2e9 (24 000 E/h): the press's first
+    attempts meet a tangent singular in x because every contact point slips at the iterate (the
+    trial states of a very stiff KT), not because the contact is open (it was, at the start of
+    the increment) nor for want of a *BOUNDARY (every point is closed).  The log says so; the
+    cut-backs then find the stick points and the run completes."""
+    deck = Path(__file__).resolve().parents[1] / "tools" / "study_decks" / "block_study.dat"
+    out, cap, _ = run_deck(deck, tmp_path / "out", parameters={"KT": 2e9})
+    assert out.status == 0
+    failed = [l for l in (tmp_path / "out" / "block_study.log").read_text().splitlines()
+              if "attempt failed" in l and "singular" in l and "INFO" in l]
+    assert len(failed) == 2, failed
+    for line in failed:
+        assert "the body of elements 1..32 (x) can move freely: held only by friction" in line
+        assert "BLOCK_BOTTOM->FLAT: 24 of 24 points closed, none sticking" in line
+        assert "not closed yet" not in line and "add the *BOUNDARY" not in line
+
+
 def test_stabilised_point_contact_matches_hertz(tmp_path):
     """With *CONTACT STABILIZATION it runs: the platen carries F, the flat F, Hertz's a and p0
     at P = 2 F (the coarse mesh's accuracy, as decks/hertz.dat driven by a displacement), and
