@@ -428,3 +428,25 @@ def test_every_kernel_mutation_still_finds_its_text(monkeypatch):
     monkeypatch.setitem(sys.modules, spec.name, module)     # its dataclass looks itself up
     spec.loader.exec_module(module)
     module.check(module.MUTATIONS)                 # SystemExit names the stale mutation
+
+
+# ------------------------------------------------------------------------------------------
+# tools/other_cpus.py: decks run with another processor's round-off
+
+def test_other_cpus_runs_a_deck_and_judges_it_against_its_reference(tmp_path, capsys):
+    """The tool runs the deck in a process with the configuration's environment and prints
+    compare's verdict with the run's path (increments and solves, as its .sta file has them)."""
+    import importlib.util
+    import re
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("other_cpus", root / "tools" / "other_cpus.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    assert tool.main(["coulomb_block", "--cpus", "prescott", "--keep", str(tmp_path)]) == 0
+    line = capsys.readouterr().out.strip()
+    found = re.fullmatch(r"prescott +coulomb_block +PASS \((\d+) increments, (\d+) solves\)", line)
+    assert found, line
+    sta = tmp_path / "prescott" / "coulomb_block" / "coulomb_block.sta"
+    rows = [r for r in csv.DictReader(sta.open()) if r["failed"] == "no"]
+    assert (int(found[1]), int(found[2])) == (len(rows), sum(int(r["iterations"]) for r in rows))
+    assert tool.cpu_env({"OPENBLAS_CORETYPE": "Zen"})["OPENBLAS_CORETYPE"] == "Zen"
