@@ -51,7 +51,7 @@ normal of the foundation tangent at Q, dotting the differential with ``m`` remov
 so ``dd/dP = m/(m.e_u)``, ``dd/de_u = -d m/(m.e_u)``, ``dd/dc = -dd/dP`` (stored as
 ``dd_dP`` and ``dd_de``).  They do not involve the curvature of the foundation; they blow up
 only for rays tangent to the foundation, which are not valid (``e_u . n < 0`` strictly, by a
-margin ``cos_min``).
+margin ``cos_min``, :data:`GRAZING_COS`).
 
 At a joint both arcs give the same Q and d (C0 chain), so d is continuous; either arc may be
 reported.  Its derivatives jump there when the chain has a kink (the tangent jumps).
@@ -152,6 +152,17 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
+#: the smallest ``-e_u . n`` of a valid intersection: a ray closer than this to grazing the
+#: foundation is a miss.  Its hit would lie ``h / cos`` away (h the point's distance to the
+#: foundation's line), a number made of the round-off of the normal: a face exactly parallel to
+#: a tool (the ring's flank beside the platen, decks/ring.dat) has a ray 1e-10..1e-9 off
+#: grazing, from the last bits of a converged displacement, so its point was "open" with a gap
+#: of 1e9..6e9 mm on one CPU and "none" on another (OpenBLAS's Haswell, Zen or SandyBridge
+#: kernels against SkylakeX's).  1e-6 leaves a margin of 1e3 over that noise and rejects only
+#: rays within 6e-5 degrees of the surface, which cannot carry a contact force.
+GRAZING_COS = 1e-6
+
+
 class Foundation:
     """Rigid chain of 3-point parabolic arcs.
 
@@ -161,10 +172,11 @@ class Foundation:
     name : str, for messages.
     centre : (2,) the reference point its placement turns about.
     s_tol : tolerance on the arc parameter when accepting a root (joints).
-    cos_min : minimal ``-e_u . n`` for a valid intersection (rejects grazing rays).
+    cos_min : minimal ``-e_u . n`` for a valid intersection (rejects grazing rays;
+        :data:`GRAZING_COS`).
     """
 
-    def __init__(self, points, name: str = "", s_tol: float = 1e-8, cos_min: float = 1e-10,
+    def __init__(self, points, name: str = "", s_tol: float = 1e-8, cos_min: float = GRAZING_COS,
                  centre=(0.0, 0.0)):
         pts = np.asarray(points, float)
         #: the reference point of the placement (see the module docstring)

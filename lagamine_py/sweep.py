@@ -31,7 +31,7 @@ by more values) skips the points that ran to the end (status 0) or stopped on no
 (status 3) *with the same deck*, reusing their rows, so an interrupted sweep resumes where it
 stopped; a point run with another deck, with this deck before it (an included file, a
 parameter default) changed, or by another version of the program (:func:`program_digest`: the
-package's source, Python's, NumPy's and SciPy's versions), runs again, and the sweep says so.  Points with a deck error (2),
+package's source, other packages' plugins, Python's, NumPy's and SciPy's versions), runs again, and the sweep says so.  Points with a deck error (2),
 a crash (1) or a signal are run again, on the view that their deck or installation has been
 fixed in between.  A point whose worker failed (an exception, a lost dask worker) is recorded
 in sweep.csv with status 1 and the reason, and leaves no ``point.json``.
@@ -372,15 +372,50 @@ def point_digest(deck: Path, params: dict[str, str]) -> str:
 @functools.lru_cache(maxsize=None)
 def program_digest() -> str:
     """The digest of this lagamine_py's source (every module of the package, by relative path
-    and bytes) and of the Python, NumPy and SciPy versions: a point finished by another
-    version of the program is not reused (plugins of other packages are not covered)."""
+    and bytes), of the installed plugins of other packages (:func:`plugin_sources`) and of the
+    Python, NumPy and SciPy versions: a point finished by another version of the program, or
+    with another version of a plugin, is not reused."""
     import numpy
     import scipy
     h = hashlib.sha256(f"{sys.version}|{numpy.__version__}|{scipy.__version__}".encode())
     root = Path(__file__).resolve().parent
     for path in sorted(root.rglob("*.py")):
         h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+    for label, source in plugin_sources():
+        h.update(label.encode() + b"\0" + source + b"\0")
     return h.hexdigest()
+
+
+def plugin_sources(path: list[str] | None = None) -> list[tuple[str, bytes]]:
+    """The plugins other packages install (entry points of the ``lagamine_py.*`` groups whose
+    module is not this package's, on ``path``, default ``sys.path``), each as ``("group name =
+    value", source)``: the bytes of its module, or of every module of its package, found
+    without importing the module itself (its parent packages are imported).  A module that
+    cannot be found gives empty bytes (the run will say why)."""
+    import importlib.util
+    from . import registry
+    eps = registry.scan_entry_points(path=path)
+    if eps is None:                                     # a zipped distribution: importlib's view
+        from importlib import metadata
+        eps = [registry.EntryPoint(ep.name, ep.value, ep.group)
+               for k in registry.KINDS for ep in metadata.entry_points(group=f"lagamine_py.{k}")]
+    out = []
+    for ep in sorted(eps, key=lambda e: (e.group, e.name, e.value)):
+        module = ep.value.split("[")[0].partition(":")[0].strip()
+        if module.split(".")[0] == registry.BUILTIN:
+            continue                                    # ours: in the package's own digest
+        try:
+            spec = importlib.util.find_spec(module)
+        except (ImportError, ValueError):
+            spec = None
+        files: list[Path] = []
+        if spec is not None and spec.submodule_search_locations:
+            files = sorted(f for d in spec.submodule_search_locations for f in Path(d).rglob("*.py"))
+        elif spec is not None and spec.origin and Path(spec.origin).is_file():
+            files = [Path(spec.origin)]
+        out.append((f"{ep.group} {ep.name} = {ep.value}",
+                    b"\0".join(str(f).encode() + b"\0" + f.read_bytes() for f in files)))
+    return out
 
 
 def load_point_checks(deck: Path, params: dict[str, str]) -> list[dict[str, Any]]:
@@ -533,7 +568,7 @@ def run_sweep(deck: Path, axes: dict[str, list[str]], outdir: Path, jobs: int = 
     if stale:
         log(f"sweep: {len(stale)} point(s) ran with another deck, with this deck before it "
             f"changed (its text, an included file or a parameter value), or with another version "
-            f"of lagamine_py, NumPy or SciPy; running them again: "
+            f"of lagamine_py, a plugin, NumPy or SciPy; running them again: "
             f"{', '.join(stale[:5])}{' ...' if len(stale) > 5 else ''}")
 
     counter = itertools.count(skipped + 1)

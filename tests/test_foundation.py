@@ -125,6 +125,27 @@ def test_back_facing_intersection_is_rejected():
     assert not flat.project(np.array([[0.2, 0.3]]), np.array([[0.0, 1.0]])).found[0]
 
 
+@pytest.mark.parametrize("kernel", [False, True])
+def test_a_ray_grazing_the_foundation_is_a_miss(kernel):
+    """A body's flank parallel to a flat tool (the ring's beside its platen): its normal is off
+    grazing by the round-off of the converged displacement, ~1e-10..1e-9 rad, and would hit the
+    tool's extended end 0.3 / 1e-9 = 3e8 away, a gap made of round-off that another CPU's BLAS
+    turns into a miss.  Rays closer to grazing than GRAZING_COS (1e-6) are misses, on the NumPy
+    path and the numba kernel alike; a shallow ray beyond it (1e-4 rad) is a hit at the distance
+    of the closed form 0.3 / sin(angle)."""
+    from lagamine_py.foundation import GRAZING_COS
+    flat = Foundation([[-1, 0], [0, 0], [1, 0]])
+    if kernel:
+        pytest.importorskip("numba")
+        flat.use_kernels(True)
+    P = np.array([[0.2, 0.3], [0.2, 0.3], [0.2, 0.3], [0.2, 0.3]])
+    angles = np.array([1e-9, 0.5 * GRAZING_COS, 2.0 * GRAZING_COS, 1e-4])
+    e_u = np.column_stack([np.cos(angles), -np.sin(angles)])
+    pr = flat.project(P, e_u)
+    assert pr.found.tolist() == [False, False, True, True]
+    np.testing.assert_allclose(pr.d[2:], -0.3 / np.sin(angles[2:]), rtol=1e-9)
+
+
 def test_joint_ray_continuous_d():
     """Through a kinked joint (x = 0 on WAVY) d is continuous and either arc is accepted."""
     joint = WAVY.points[2]

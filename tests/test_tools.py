@@ -271,6 +271,24 @@ def test_point_contact_under_a_force_needs_the_stabilisation(tmp_path):
     assert "*CONTACT STABILIZATION" in out.message
 
 
+def test_singular_tangent_of_an_all_slipping_contact_is_explained_as_such(tmp_path):
+    """The Coulomb block of the stability study at KT = 2e9 (24 000 E/h): the press's first
+    attempts meet a tangent singular in x because every contact point slips at the iterate (the
+    trial states of a very stiff KT), not because the contact is open (it was, at the start of
+    the increment) nor for want of a *BOUNDARY (every point is closed).  The log says so; the
+    cut-backs then find the stick points and the run completes."""
+    deck = Path(__file__).resolve().parents[1] / "tools" / "study_decks" / "block_study.dat"
+    out, cap, _ = run_deck(deck, tmp_path / "out", parameters={"KT": 2e9})
+    assert out.status == 0
+    failed = [l for l in (tmp_path / "out" / "block_study.log").read_text().splitlines()
+              if "attempt failed" in l and "singular" in l and "INFO" in l]
+    assert len(failed) == 2, failed
+    for line in failed:
+        assert "the body of elements 1..32 (x) can move freely: held only by friction" in line
+        assert "BLOCK_BOTTOM->FLAT: 24 of 24 points closed, none sticking" in line
+        assert "not closed yet" not in line and "add the *BOUNDARY" not in line
+
+
 def test_stabilised_point_contact_matches_hertz(tmp_path):
     """With *CONTACT STABILIZATION it runs: the platen carries F, the flat F, Hertz's a and p0
     at P = 2 F (the coarse mesh's accuracy, as decks/hertz.dat driven by a displacement), and
@@ -410,3 +428,25 @@ def test_every_kernel_mutation_still_finds_its_text(monkeypatch):
     monkeypatch.setitem(sys.modules, spec.name, module)     # its dataclass looks itself up
     spec.loader.exec_module(module)
     module.check(module.MUTATIONS)                 # SystemExit names the stale mutation
+
+
+# ------------------------------------------------------------------------------------------
+# tools/other_cpus.py: decks run with another processor's round-off
+
+def test_other_cpus_runs_a_deck_and_judges_it_against_its_reference(tmp_path, capsys):
+    """The tool runs the deck in a process with the configuration's environment and prints
+    compare's verdict with the run's path (increments and solves, as its .sta file has them)."""
+    import importlib.util
+    import re
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("other_cpus", root / "tools" / "other_cpus.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    assert tool.main(["coulomb_block", "--cpus", "prescott", "--keep", str(tmp_path)]) == 0
+    line = capsys.readouterr().out.strip()
+    found = re.fullmatch(r"prescott +coulomb_block +PASS \((\d+) increments, (\d+) solves\)", line)
+    assert found, line
+    sta = tmp_path / "prescott" / "coulomb_block" / "coulomb_block.sta"
+    rows = [r for r in csv.DictReader(sta.open()) if r["failed"] == "no"]
+    assert (int(found[1]), int(found[2])) == (len(rows), sum(int(r["iterations"]) for r in rows))
+    assert tool.cpu_env({"OPENBLAS_CORETYPE": "Zen"})["OPENBLAS_CORETYPE"] == "Zen"

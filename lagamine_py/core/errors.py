@@ -84,10 +84,13 @@ class SingularMatrixError(ArithmeticError):
     message says *ill-conditioned* (a penalty far stiffer than the bodies) instead of blaming
     unrestrained DOFs.  ``matrix``: the CSR data of the full tangent when Newton knows it (for a
     diagnosis of the rigid-body modes, :func:`lagamine_py.solver.tools.explain_singular`), else
+    None; ``states``: the groups' trial states at the iterate of that tangent (which contact
+    points hold at all: a point that slips there resists no motion along the surface), else
     None."""
 
     reason = "singular matrix"
     matrix: np.ndarray | None = None
+    states: list | None = None
 
     def __init__(self, dofs, detail: str = "", node_ids=None, span=None):
         self.dofs = np.asarray(sorted(set(int(d) for d in dofs)), dtype=np.int64)

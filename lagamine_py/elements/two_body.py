@@ -66,6 +66,7 @@ import numpy as np
 from ..core.errors import CutbackRequest
 from ..core.status import NONE, OPEN
 from ..core.tensors import left_normal, right_normal
+from ..foundation import GRAZING_COS
 from ..laws.base import ContactLaw
 from .base import GroupResult, StepContext
 from .contact import FAR, ContactGroup, normal_axis, sub_penetration, tangent_axis
@@ -93,7 +94,7 @@ class MasterChain:
     s_tol, cos_min : as :class:`lagamine_py.foundation.Foundation` (joints, grazing rays).
     """
 
-    def __init__(self, face_nodes, coords0, s_tol: float = 1e-8, cos_min: float = 1e-10):
+    def __init__(self, face_nodes, coords0, s_tol: float = 1e-8, cos_min: float = GRAZING_COS):
         self.face_nodes = np.asarray(face_nodes, np.int64)
         if self.face_nodes.ndim != 2 or self.face_nodes.shape[1] != 3:
             raise ValueError("a master surface needs 3-node faces (Q8, T6 elements)")

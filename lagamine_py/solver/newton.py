@@ -360,7 +360,8 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
 def _linear_solve(solves, free, ev, rhs, atol=0.0):
     """Solve ``K_ff du_f = rhs`` (:meth:`FactorReuse.solve`), ``K_ff`` from the tangent of the
     evaluation ``ev``; a singular ``K_ff`` raises SingularMatrixError naming the DOFs (in
-    global numbering) that nothing restrains, with the full tangent data as ``matrix``.
+    global numbering) that nothing restrains, with the full tangent data as ``matrix`` and the
+    iterate's trial states as ``states``.
 
     The full tangent becomes ``K_ff``: the entries it leaves out (:meth:`FreeDofs.rest`, the
     rows and columns of constrained DOFs: small) are taken, then ``K_ff``'s values are moved
@@ -377,6 +378,7 @@ def _linear_solve(solves, free, ev, rhs, atol=0.0):
         solves.forget()
         err = SingularMatrixError(free.free[exc.dofs], exc.detail, span=diagonal_span(A))
         err.matrix = free.join(A.data, rest)  # for the rigid-body diagnosis of the controller
+        err.states = ev.states                # the contact states that tangent was formed with
         raise err from None
 
 

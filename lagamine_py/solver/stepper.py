@@ -1,6 +1,6 @@
 """The increment sizes of a step, apart from the solver (after EdelweissFE's adaptive time
-stepper): grow after an easy increment, cut back on a failure, hold the size after a hard one,
-stop when the minimum is reached, and carry their own restart state.
+stepper): grow after an easy increment (not a step's first), cut back on a failure, hold the
+size after a hard one, stop when the minimum is reached, and carry their own restart state.
 
 The controller asks :meth:`Stepper.trial` for the size of the next attempt, then either
 :meth:`Stepper.accept` (the increment converged) or :meth:`Stepper.cut_back` (it failed; a
@@ -24,8 +24,17 @@ class Stepper:
     ``dt`` is the size the next increment will try (before clipping to the step end), ``t``
     the step time reached, ``inc`` the converged increments.  ``growth`` multiplies ``dt``
     after an increment converged in at most ``easy`` iterations without a cut-back (never
-    beyond ``dt_max``); ``cutback`` multiplies the size of a failed attempt; an attempt below
-    ``dt_min`` (or 1e-14 of the step) ends the step.
+    beyond ``dt_max``), but not after the first increment of a step; ``cutback`` multiplies the
+    size of a failed attempt; an attempt below ``dt_min`` (or 1e-14 of the step) ends the step.
+
+    Why not after a step's first increment: it starts without an extrapolated first iterate,
+    often at a change of load or contact state (the onset of sliding), and its count is the
+    contact-state search, the count that round-off moves most: the main job's onset takes 9
+    solves with this machine's NumPy and OpenBLAS, 4 with NumPy's AVX-512 loops switched off or
+    OpenBLAS's SandyBridge kernels, 11 with its Prescott ones; when that count decided the
+    growth, the slide took other increments there and T mid-slide moved by 0.8 % (`lagamine-py
+    compare` against decks/reference/press_slide failed).  Abaqus grows only after two
+    consecutive easy increments, which never counts a step's first increment alone either.
     """
     period: float
     dt: float
@@ -80,7 +89,8 @@ class Stepper:
         end = self.t + self.attempt
         self.t = self.period if self.period - end <= 1e-12 * self.period else end
         self.dt = self.attempt
-        if iterations <= self.easy and self.cutbacks == 0:
+        # the first increment of a step (inc 1 after the += above) does not grow dt: see the class
+        if iterations <= self.easy and self.cutbacks == 0 and self.inc > 1:
             self.dt = min(self.dt * self.growth, self.dt_max)
         return self.t
 

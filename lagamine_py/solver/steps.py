@@ -633,7 +633,8 @@ class Controller:
             if exc.ill_conditioned and self.problem.warnings:     # the penalties' advice says why
                 text += "; " + "; ".join(self.problem.warnings)
             elif exc.matrix is not None and free is not None:
-                why = tools.explain_singular(self.problem, exc.matrix, free.free, self.states)
+                states = self.states if exc.states is None else exc.states
+                why = tools.explain_singular(self.problem, exc.matrix, free.free, states)
                 if why:
                     text += f": {why}"
             return text

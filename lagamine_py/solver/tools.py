@@ -222,9 +222,11 @@ def _free_modes(problem, K, free_mask) -> list[list[tuple[str, str, np.ndarray]]
 def explain_singular(problem, data: np.ndarray, free_dofs: np.ndarray, states: list) -> str:
     """Why the tangent (CSR ``data`` of the full pattern) is singular at the free DOFs
     ``free_dofs``: the rigid-body motions that nothing restrains (of tools, bodies, or a body
-    and the tool pressing it together), and when they are held only by contact that has no
-    closed point (``states``: the contact states at the start of the increment), that the
-    contact is not closed yet, with what to do.  "" when no rigid-body motion is free."""
+    and the tool pressing it together), and when they are held only by contact, whether that
+    contact has no closed point (not closed yet) or only slipping ones (friction holds nothing
+    along the surface at this iterate), with what to do.  ``states``: the groups' states the
+    tangent was formed with (the iterate's trial states; the start of the increment's when
+    those are not known).  "" when no rigid-body motion is free."""
     K = problem.pattern.matrix(np.asarray(data, float))
     free_mask = np.zeros(K.shape[0], bool)
     free_mask[np.asarray(free_dofs, np.int64)] = True
@@ -237,9 +239,11 @@ def explain_singular(problem, data: np.ndarray, free_dofs: np.ndarray, states: l
     model = problem.model
     pairs = {k: problem.group_names[k] for k in problem.indices(CONTACT)}
 
+    def count(k, *codes) -> int:
+        return int(np.isin(np.asarray(states[k]["status"]), codes).sum())
+
     def closed(k) -> int:
-        st = np.asarray(states[k]["status"])
-        return int(np.sum((st == STICK) | (st == SLIP)))
+        return count(k, STICK, SLIP)
 
     def label(owner, where) -> str:
         if owner != "body":
@@ -251,7 +255,7 @@ def explain_singular(problem, data: np.ndarray, free_dofs: np.ndarray, states: l
         return (f"the body of elements {ids[0]}..{ids[-1]}" if len(ids) > 1
                 else f"the body of element {ids[0]}")
 
-    parts, open_contact = [], False
+    parts, open_contact, all_slip = [], False, False
     for motion in motions:
         owners: dict[str, list[str]] = {}
         nodes, tools = [], set()
@@ -274,14 +278,28 @@ def explain_singular(problem, data: np.ndarray, free_dofs: np.ndarray, states: l
             if all(closed(k) == 0 for k in holding):
                 open_contact = True
                 text += f": held only by contact, which is not closed yet ({held})"
+            elif all(count(k, STICK) == 0 for k in holding):
+                # closed points press (KP holds the normal): what is free is along the surface
+                all_slip = True
+                text += (f": held only by friction, and every closed point slips at this iterate "
+                         f"({held}, none sticking; a slipping point resists no motion along the "
+                         f"surface)")
             else:
                 text += f" (its contact: {held})"
         else:
             text += ": nothing restrains it (no *BOUNDARY, no contact)"
         parts.append(text)
     head = "contact is not closed yet: " if open_contact else ""
-    advice = (" -- start the bodies in contact along a face rather than at a point, prescribe "
-              "what moves freely (*BOUNDARY), or add *CONTACT STABILIZATION to the step (it damps "
-              "the motion until the contact closes)") if open_contact else \
-        " -- add the *BOUNDARY that holds it"
+    if open_contact:
+        advice = (" -- start the bodies in contact along a face rather than at a point, prescribe "
+                  "what moves freely (*BOUNDARY), or add *CONTACT STABILIZATION to the step (it "
+                  "damps the motion until the contact closes)")
+    elif all_slip:
+        advice = (" -- a tangential penalty KT far stiffer than the body sends every trial state "
+                  "to slip, and a load along the surface beyond what friction holds leaves nothing "
+                  "sticking: a smaller increment (the cut-back) often finds the stick points; if "
+                  "the run stops here, soften KT or prescribe the motion along the surface "
+                  "(*BOUNDARY)")
+    else:
+        advice = " -- add the *BOUNDARY that holds it"
     return head + "; ".join(parts) + advice
