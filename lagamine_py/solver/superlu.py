@@ -132,8 +132,9 @@ class KeptOrdering:
         self.b_indices = np.asarray(A.indices)[gather].astype(np.intc)
         self.b_indptr = indptr.astype(np.intc)
 
-    def matches(self, A: sp.csc_matrix) -> bool:
-        """``A`` has the structure this ordering was made for."""
+    def matches(self, A: sp.csc_matrix | sp.csr_matrix) -> bool:
+        """``A`` has the structure this ordering was made for (a CSR ``A`` is read as the CSC
+        arrays of its transpose: the matrix ``SpluSolver`` factorises)."""
         if A.shape != (self.n, self.n):
             return False
         if A.indptr is self.indptr and A.indices is self.indices:
