@@ -56,6 +56,15 @@ TRIM_FILL = 200_000
 #: +2.0-2.6 MiB at a peak that sits at CalculiX's, for no measurable CPU: most of its solves
 #: reuse a factor through GMRES; docs/performance.md, "Start-up, first run, memory")
 KEEP_ORDERING_ENTRIES = 100_000
+#: a ``lagamine-py run`` of up to this many DOFs keeps the C heap's freed blocks for the rest of
+#: the process (:func:`keep_freed_heap`): its arrays are re-made at every evaluation and
+#: factorisation, and glibc's default policy (a block above the mmap threshold mapped afresh,
+#: the heap's top handed back past the trim threshold) faulted their pages in again each time;
+#: above it the memory item's peaks (40x20: 5 042 DOFs, at CalculiX's) keep the default
+KEEP_HEAP_DOFS = 4_000
+#: glibc ``mallopt`` parameters and the values :func:`keep_freed_heap` sets
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+KEPT_TRIM_THRESHOLD, KEPT_MMAP_THRESHOLD = 64 << 20, 16 << 20
 
 
 class FreeDofs:
@@ -279,6 +288,29 @@ def return_free_heap() -> None:
     trim = _malloc_trim()
     if trim is not None:
         trim(0)
+
+
+@functools.lru_cache(maxsize=None)
+def _mallopt():
+    """glibc's ``mallopt``, or None (another C library)."""
+    try:
+        return ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError, TypeError):
+        return None
+
+
+def keep_freed_heap() -> bool:
+    """Keep freed blocks in the C heap from now on (glibc: blocks up to
+    ``KEPT_MMAP_THRESHOLD`` come from the heap, whose top is handed back only past
+    ``KEPT_TRIM_THRESHOLD``; :func:`return_free_heap` still trims on demand).  Process-wide and
+    for good (glibc's dynamic thresholds do not come back): for a process that runs one small
+    model (``lagamine-py run``, :data:`KEEP_HEAP_DOFS`).  False where there is no ``mallopt``
+    or it refuses."""
+    mallopt = _mallopt()
+    if mallopt is None:
+        return False
+    return bool(mallopt(_M_TRIM_THRESHOLD, KEPT_TRIM_THRESHOLD)) \
+        and bool(mallopt(_M_MMAP_THRESHOLD, KEPT_MMAP_THRESHOLD))
 
 
 def _exact_singular_dofs(At: sp.csc_matrix, scale: float) -> np.ndarray:
