@@ -30,7 +30,7 @@ from ..core.errors import SingularMatrixError
 from ..core.plugin import Plugin
 from ..core.threads import pin_threads
 from .pattern import index_dtype
-from .superlu import KeptOrdering, splu, superlu_module
+from .superlu import KeptOrdering, splu, superlu_module, u_diagonal
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
@@ -219,7 +219,12 @@ class SpluSolver(LinearSolver):
         # same structure arrays, square shape); the CSC view of A^T is made only when the
         # structure is new or the factorisation fails (scipy's checks of its arrays were
         # ~0.1 ms a factorisation of the main job's 866 DOFs)
-        scale = np.abs(A.diagonal()).max() if A.shape[0] else 0.0
+        order = self.ordering
+        kept = order is not None and order.matches(A)
+        # max |K_ii|: through the kept structure's diagonal positions (scipy's diagonal() of a
+        # CSR matrix was ~45 us a factorisation of the main job's)
+        scale = (order.diagonal_scale(A.data) if kept else np.abs(A.diagonal()).max()) \
+            if A.shape[0] else 0.0
         # the last factor goes before the next is computed, and the heap's free pages with it:
         # SuperLU grows its work arrays by reallocation, which left the heap holding 20-70 MB
         # of freed blocks at 5-7k DOFs (peaks 123-197 MB from one run to the next, 40x20-48x24);
@@ -228,9 +233,8 @@ class SpluSolver(LinearSolver):
         self.lu = None
         if fill >= TRIM_FILL:
             return_free_heap()
-        order = self.ordering
         try:
-            if order is not None and order.matches(A):
+            if kept:
                 self.lu = order.factor(A.data)
                 self.ordered = True
             else:
@@ -243,7 +247,7 @@ class SpluSolver(LinearSolver):
                                       "zero pivot") from None
         # Pr A Pc = L U with Pc[j, perm_c[j]] = 1: original column j has pivot U[perm_c[j]]
         position = order.position if order is not None else self.lu.perm_c
-        pivots = np.abs(self.lu.U.diagonal())[position]
+        pivots = np.abs(u_diagonal(self.lu))[position]
         small = ~(pivots > PIVOT_RTOL * scale)          # also catches NaN
         if small.any():
             bad = np.flatnonzero(small)
