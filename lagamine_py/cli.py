@@ -332,6 +332,9 @@ def _cmd_run(args) -> int:
     model = _load(Path(deck), params)
     if model is None:
         return EXIT_DECK
+    from .solver.linear import KEEP_HEAP_DOFS, keep_freed_heap
+    if 2 * len(model.coords) <= KEEP_HEAP_DOFS:     # this process runs one small model
+        keep_freed_heap()
     if args.solver:
         from .registry import names
         known = names("solvers")

@@ -119,9 +119,14 @@ def _assert_same_factor(lu, ref, order, b):
     np.testing.assert_array_equal(lu.perm_c, np.arange(len(lu.perm_c)))   # no reordering
     np.testing.assert_array_equal(lu.perm_r, ref.perm_r)
     for a, r in ((lu.L, ref.L), (lu.U, ref.U)):
-        np.testing.assert_array_equal(a.indptr, r.indptr)
-        np.testing.assert_array_equal(a.indices, r.indices)
-        np.testing.assert_array_equal(a.data, r.data)
+        assert isinstance(a, superlu.CscParts) and a.shape == r.shape
+        data, indices, indptr = a.arrays
+        end = indptr[-1]
+        np.testing.assert_array_equal(indptr, r.indptr)
+        np.testing.assert_array_equal(indices[:end], r.indices)
+        np.testing.assert_array_equal(data[:end], r.data)
+    np.testing.assert_array_equal(superlu.u_diagonal(lu), ref.U.diagonal())
+    np.testing.assert_array_equal(superlu.u_diagonal(ref), ref.U.diagonal())
     np.testing.assert_array_equal(lu.solve(b[order.columns], trans="T"), ref.solve(b, trans="T"))
 
 
@@ -156,3 +161,70 @@ def test_kept_ordering_recognises_its_structure(fe_tangent):
     other[0, A.shape[0] - 1] = 1.0                                      # one more entry
     assert not order.matches(other.tocsc())
     assert not order.matches(A[:-1, :-1].tocsc())
+
+
+def _parts(M):
+    """A CSC matrix as CscParts, with spare room past its last entry as SuperLU leaves it."""
+    M = sp.csc_matrix(M)
+    pad = lambda a: np.concatenate([a, np.full(5, a[-1] if a.size else 0, a.dtype)])  # noqa: E731
+    return superlu.CscParts((pad(M.data), pad(M.indices), M.indptr), M.shape)
+
+
+class _Factor:
+    def __init__(self, U):
+        self.U = U
+
+
+@pytest.mark.parametrize("case", ["last", "unsorted", "missing", "empty column"])
+def test_u_diagonal_of_the_raw_arrays_is_scipys(case):
+    """The diagonal read from CscParts equals scipy's U.diagonal(): where each column's
+    diagonal entry comes last (SuperLU's U) and, searched, where it does not."""
+    rng = np.random.default_rng(3)
+    U = sp.triu(sp.random(12, 12, density=0.3, random_state=rng)) + sp.diags(rng.random(12) + 1)
+    U = sp.csc_matrix(U)
+    if case == "unsorted":              # a column's diagonal entry first
+        U = U.copy()
+        for j in range(12):
+            a, b = U.indptr[j], U.indptr[j + 1]
+            U.indices[a:b], U.data[a:b] = U.indices[a:b][::-1].copy(), U.data[a:b][::-1].copy()
+        U.has_sorted_indices = False
+    elif case == "missing":
+        U = U.tolil()
+        U[4, 4] = 0.0
+        U = sp.csc_matrix(U)
+        U.eliminate_zeros()
+    elif case == "empty column":
+        U = U.tolil()
+        U[:, 7] = 0.0
+        U = sp.csc_matrix(U)
+        U.eliminate_zeros()
+    np.testing.assert_array_equal(superlu.u_diagonal(_Factor(_parts(U))), U.diagonal())
+
+
+@pytest.mark.parametrize("case", ["full", "missing", "nan", "none"])
+def test_kept_ordering_diagonal_scale_is_the_diagonals_largest_magnitude(case):
+    """``diagonal_scale`` (the pivot test's scale, read at the structure's diagonal positions)
+    is ``np.abs(A.diagonal()).max()`` for any values of the structure: with diagonal entries
+    missing from it (they count 0), a NaN among them, or none at all."""
+    rng = np.random.default_rng(7)
+    A = sp.random(30, 30, density=0.2, random_state=rng, format="csc") + sp.diags(rng.random(30) + 1)
+    A = sp.csc_matrix(A)
+    if case in ("missing", "none"):
+        A = A.tolil()
+        for i in (range(30) if case == "none" else (3, 11, 29)):
+            A[i, i] = 0.0
+        A = sp.csc_matrix(A)
+        A.eliminate_zeros()
+        A = A + sp.csc_matrix((np.full(30, 5.0), (np.arange(30), (np.arange(30) + 1) % 30)),
+                              shape=A.shape)                        # nonsingular for splu
+        A = sp.csc_matrix(A)
+    A.sort_indices()
+    order = superlu.KeptOrdering(A, superlu.splu(A))
+    for _ in range(3):
+        data = rng.standard_normal(A.nnz) * 10.0
+        if case == "nan":
+            data[A.indptr[5] + np.flatnonzero(A.indices[A.indptr[5]:A.indptr[6]] == 5)[0]] = np.nan
+        B = sp.csc_matrix((data, A.indices, A.indptr), shape=A.shape)
+        want = np.abs(B.diagonal()).max()
+        got = order.diagonal_scale(data)
+        assert (np.isnan(got) and np.isnan(want)) if case == "nan" else got == want

@@ -105,11 +105,27 @@ def _log_b_value(b2: np.ndarray):
     (:func:`_log_b_derivative`), so that it can be taken later from the same numbers."""
     lam, V = sym_eig2(b2)
     v0, v1 = V[..., :, 0], V[..., :, 1]
-    P0 = v0[..., :, None] * v0[..., None, :]
-    P1 = v1[..., :, None] * v1[..., None, :]
+    P0, P1 = _projector(v0), _projector(v1)
     half_log = 0.5 * np.log(lam)
-    E = half_log[..., 0, None, None] * P0 + half_log[..., 1, None, None] * P1
+    # E = l0 P0 + l1 P1 entry by entry (the same products and sums as the broadcast form,
+    # which ran an inner loop of two per point)
+    E = np.empty_like(P0)
+    l0, l1 = half_log[..., 0], half_log[..., 1]
+    for i in (0, 1):
+        for j in (0, 1):
+            out = E[..., i, j]
+            np.multiply(l0, P0[..., i, j], out=out)
+            out += l1 * P1[..., i, j]
     return E, (lam, v0, v1, P0, P1)
+
+
+def _projector(v: np.ndarray) -> np.ndarray:
+    """``v v^T`` (..., 2, 2) of vectors (..., 2), entry by entry."""
+    P = np.empty(v.shape + (2,))
+    for i in (0, 1):
+        for j in (0, 1):
+            np.multiply(v[..., i], v[..., j], out=P[..., i, j])
+    return P
 
 
 def _log_b_derivative(lam, v0, v1, P0, P1, rows=None):
@@ -119,8 +135,11 @@ def _log_b_derivative(lam, v0, v1, P0, P1, rows=None):
     The second and third terms are formed in one buffer."""
     m = 0.5 * (lam[..., 0] + lam[..., 1])
     ratio = _atanh_over_x(0.5 * (lam[..., 0] - lam[..., 1]) / m)
-    S = v0[..., :, None] * v1[..., None, :]
-    S = S + np.swapaxes(S, -1, -2)
+    p = np.empty_like(P0)                                 # v0_i v1_j, then S = p + p^T
+    for i in (0, 1):
+        for j in (0, 1):
+            np.multiply(v0[..., i], v1[..., j], out=p[..., i, j])
+    S = p + np.swapaxes(p, -1, -2)
     C = _outer22(P0, 0.5 / lam[..., 0], rows)
     term = np.empty_like(C)
     C += _outer22(P1, 0.5 / lam[..., 1], rows, term)
@@ -156,12 +175,21 @@ def _atanh_over_x(x: np.ndarray) -> np.ndarray:
 def _outer22(A: np.ndarray, c: np.ndarray, rows=None, out=None) -> np.ndarray:
     """``c A_ij A_mn``: (..., 2, 2), (...) -> (..., 2, 2, 2, 2); with ``rows`` (r,) the rows
     ij = ``rows`` of the flattened ij only, (..., r, 2, 2) (the same products), into ``out``
-    if given."""
-    cA = c[..., None, None] * A
-    if rows is None:
-        return np.multiply(cA[..., :, :, None, None], A[..., None, None, :, :], out=out)
-    cA = cA.reshape(cA.shape[:-2] + (4,))[..., rows]
-    return np.multiply(cA[..., :, None, None], A[..., None, :, :], out=out)
+    if given.  Entry by entry, ``(c A_ij) A_mn`` (a broadcast product ran an inner loop of two
+    per point and row)."""
+    Af = A.reshape(A.shape[:-2] + (4,))
+    if out is None:
+        out = np.empty(A.shape + (2, 2) if rows is None else A.shape[:-2] + (len(rows), 2, 2))
+    rows = _ALL_IJ if rows is None else rows
+    flat = out.reshape(A.shape[:-2] + (len(rows), 4))        # a view: out is contiguous
+    for r, ij in enumerate(rows.tolist()):
+        cA = c * Af[..., ij]
+        for mn in range(4):
+            np.multiply(cA, Af[..., mn], out=flat[..., r, mn])
+    return out
+
+
+_ALL_IJ = np.arange(4)
 
 
 # --------------------------------------------------------------------------------------------

@@ -70,9 +70,16 @@ class J2Plasticity(MaterialLaw):
         peeq_n = np.broadcast_to(np.asarray(state["peeq"], dtype=float), shape).reshape(-1)
         K, G = self.K, self.G
 
-        tr = eps[:, :3].sum(-1)                                        # (m,)
+        # sums over the 4-vector written out in the order the reductions along it add (the same
+        # values: a reduction over a short last axis runs one inner loop per point)
+        tr = eps[:, 0] + eps[:, 1]
+        tr += eps[:, 2]                                                # (m,)
         s_tr = 2.0 * G * eps @ _DEV.T                                  # (m, s) tensor components
-        norm_tr = np.sqrt(np.sum(s_tr[:, :3] ** 2, -1) + 2.0 * s_tr[:, 3] ** 2)
+        sq = s_tr * s_tr
+        norm_tr = sq[:, 0] + sq[:, 1]
+        norm_tr += sq[:, 2]
+        norm_tr += 2.0 * sq[:, 3]
+        np.sqrt(norm_tr, out=norm_tr)
         q_tr = np.sqrt(1.5) * norm_tr
         sy_n = self.yield_stress(peeq_n)
         plastic = q_tr > sy_n * (1.0 + YIELD_RTOL)
@@ -107,7 +114,8 @@ class J2Plasticity(MaterialLaw):
             D = np.broadcast_to(self.D_elastic, (eps.shape[0], 4, 4)).copy()
             if some:
                 D[plastic] = Dp
-        ok &= np.isfinite(stress).all(-1) & np.isfinite(D.reshape(-1, 16)).all(-1)
+        if not (np.isfinite(stress).all() and np.isfinite(D).all()):    # else every point ok
+            ok &= np.isfinite(stress).all(-1) & np.isfinite(D.reshape(-1, 16)).all(-1)
 
         new_state = {"eps_e": eps_e.reshape(shape + (4,)), "peeq": peeq.reshape(shape)}
         return stress.reshape(shape + (4,)), D.reshape(shape + (4, 4)), new_state, ok.reshape(shape)

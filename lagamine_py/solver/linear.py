@@ -30,7 +30,7 @@ from ..core.errors import SingularMatrixError
 from ..core.plugin import Plugin
 from ..core.threads import pin_threads
 from .pattern import index_dtype
-from .superlu import KeptOrdering, splu, superlu_module
+from .superlu import KeptOrdering, splu, superlu_module, u_diagonal
 
 pin_threads()          # OpenBLAS (numpy, scipy) to one thread: see lagamine_py/_threads.py
 
@@ -56,6 +56,15 @@ TRIM_FILL = 200_000
 #: +2.0-2.6 MiB at a peak that sits at CalculiX's, for no measurable CPU: most of its solves
 #: reuse a factor through GMRES; docs/performance.md, "Start-up, first run, memory")
 KEEP_ORDERING_ENTRIES = 100_000
+#: a ``lagamine-py run`` of up to this many DOFs keeps the C heap's freed blocks for the rest of
+#: the process (:func:`keep_freed_heap`): its arrays are re-made at every evaluation and
+#: factorisation, and glibc's default policy (a block above the mmap threshold mapped afresh,
+#: the heap's top handed back past the trim threshold) faulted their pages in again each time;
+#: above it the memory item's peaks (40x20: 5 042 DOFs, at CalculiX's) keep the default
+KEEP_HEAP_DOFS = 4_000
+#: glibc ``mallopt`` parameters and the values :func:`keep_freed_heap` sets
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+KEPT_TRIM_THRESHOLD, KEPT_MMAP_THRESHOLD = 64 << 20, 16 << 20
 
 
 class FreeDofs:
@@ -206,9 +215,16 @@ class SpluSolver(LinearSolver):
 
     def factor(self, A: sp.csr_matrix) -> None:
         # The CSR arrays of A are the CSC arrays of A^T: factor A^T without any conversion
-        # and solve with trans="T".
-        At = sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
-        scale = np.abs(A.diagonal()).max() if A.shape[0] else 0.0
+        # and solve with trans="T".  A kept ordering reads those arrays straight from A (the
+        # same structure arrays, square shape); the CSC view of A^T is made only when the
+        # structure is new or the factorisation fails (scipy's checks of its arrays were
+        # ~0.1 ms a factorisation of the main job's 866 DOFs)
+        order = self.ordering
+        kept = order is not None and order.matches(A)
+        # max |K_ii|: through the kept structure's diagonal positions (scipy's diagonal() of a
+        # CSR matrix was ~45 us a factorisation of the main job's)
+        scale = (order.diagonal_scale(A.data) if kept else np.abs(A.diagonal()).max()) \
+            if A.shape[0] else 0.0
         # the last factor goes before the next is computed, and the heap's free pages with it:
         # SuperLU grows its work arrays by reallocation, which left the heap holding 20-70 MB
         # of freed blocks at 5-7k DOFs (peaks 123-197 MB from one run to the next, 40x20-48x24);
@@ -217,20 +233,21 @@ class SpluSolver(LinearSolver):
         self.lu = None
         if fill >= TRIM_FILL:
             return_free_heap()
-        order = self.ordering
         try:
-            if order is not None and order.matches(At):
-                self.lu = order.factor(At.data)
+            if kept:
+                self.lu = order.factor(A.data)
                 self.ordered = True
             else:
+                At = _transposed_csc(A)
                 self.lu = splu(At, permc_spec="MMD_AT_PLUS_A")
                 self.ordered = False
                 order = self.ordering = _kept_ordering(At, self.lu)
         except RuntimeError:                # "Factor is exactly singular"
-            raise SingularMatrixError(_exact_singular_dofs(At, scale), "zero pivot") from None
+            raise SingularMatrixError(_exact_singular_dofs(_transposed_csc(A), scale),
+                                      "zero pivot") from None
         # Pr A Pc = L U with Pc[j, perm_c[j]] = 1: original column j has pivot U[perm_c[j]]
         position = order.position if order is not None else self.lu.perm_c
-        pivots = np.abs(self.lu.U.diagonal())[position]
+        pivots = np.abs(u_diagonal(self.lu))[position]
         small = ~(pivots > PIVOT_RTOL * scale)          # also catches NaN
         if small.any():
             bad = np.flatnonzero(small)
@@ -241,6 +258,11 @@ class SpluSolver(LinearSolver):
         if self.ordered:
             b = b[self.ordering.columns]
         return self.lu.solve(b, trans="T")
+
+
+def _transposed_csc(A: sp.csr_matrix) -> sp.csc_matrix:
+    """``A^T`` as CSC: the CSR arrays of ``A`` themselves (no copy)."""
+    return sp.csc_matrix((A.data, A.indices, A.indptr), shape=A.shape)
 
 
 def _kept_ordering(At: sp.csc_matrix, lu) -> KeptOrdering | None:
@@ -270,6 +292,29 @@ def return_free_heap() -> None:
     trim = _malloc_trim()
     if trim is not None:
         trim(0)
+
+
+@functools.lru_cache(maxsize=None)
+def _mallopt():
+    """glibc's ``mallopt``, or None (another C library)."""
+    try:
+        return ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError, TypeError):
+        return None
+
+
+def keep_freed_heap() -> bool:
+    """Keep freed blocks in the C heap from now on (glibc: blocks up to
+    ``KEPT_MMAP_THRESHOLD`` come from the heap, whose top is handed back only past
+    ``KEPT_TRIM_THRESHOLD``; :func:`return_free_heap` still trims on demand).  Process-wide and
+    for good (glibc's dynamic thresholds do not come back): for a process that runs one small
+    model (``lagamine-py run``, :data:`KEEP_HEAP_DOFS`).  False where there is no ``mallopt``
+    or it refuses."""
+    mallopt = _mallopt()
+    if mallopt is None:
+        return False
+    return bool(mallopt(_M_TRIM_THRESHOLD, KEPT_TRIM_THRESHOLD)) \
+        and bool(mallopt(_M_MMAP_THRESHOLD, KEPT_MMAP_THRESHOLD))
 
 
 def _exact_singular_dofs(At: sp.csc_matrix, scale: float) -> np.ndarray:
