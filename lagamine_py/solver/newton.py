@@ -195,6 +195,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
     energy0 = None
+    du = np.zeros_like(u)      # the correction: one array per increment (fresh pages per solve)
     solves = 0                 # the iteration count: a pass that only reviews solves nothing
     f_ext_norm = float(np.linalg.norm(f_ext))
     for k in range(settings.maxit + 1):
@@ -234,8 +235,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
         log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
         if not _all_finite(du_f, energy):
             raise NotANumber(f"non-finite correction at iteration {k}", history)
-        du = np.zeros_like(u)
-        du[free.free] = du_f
+        du[free.free] = du_f        # free and constrained DOFs partition du: all of it set
         du[c] = du_imposed[c]
         if energy0 is None:
             energy0 = max(energy, predicted_energy)
