@@ -17,6 +17,12 @@ CSR data and force vectors:
   difference).  Save with one tree and check with another (``PYTHONPATH=<tree> python
   tools/kernel_calls.py ...``): a change that keeps every byte keeps every run's path.
 
+``--plastic NXxNY [--element Q8PE]``: instead, the ``tools/bench.py assembly`` group (a
+Ramberg-Osgood Q8 block, NLGEOM) from a committed state at 0.9 of its displacement, every point
+plastic (the ln P branch of the return map, as in press-then-slide's plastic zone): us per
+element with and without the tangent, the start of the increment kept (best of ``R`` calls,
+CPU).  Steadier than replayed calls under load: one large call.
+
 Timings only, never asserted in tests; what the kernel computes is held by the tests.
 """
 from __future__ import annotations
@@ -119,6 +125,43 @@ def cpu_per_call(calls, tangent: bool, repeat: int, fresh_start: bool) -> float:
     return best
 
 
+def plastic_block(size: str, element: str, repeat: int) -> str:
+    """us per element of the fused kernel on the assembly group from a plastic committed state
+    (``--plastic``)."""
+    from bench import E_STEEL, structured_q8
+
+    from lagamine_py.elements.base import StepContext
+    from lagamine_py.registry import get
+    from lagamine_py.solver.pattern import Pattern
+
+    nx, ny = (int(n) for n in size.split("x"))
+    xy, conn = structured_q8(nx, ny)
+    xy = xy + [10.0, 0.0]                                   # off the axis (axisymmetric)
+    law = get("laws", "RAMBERG_OSGOOD")(E=E_STEEL, NU=0.3, SIGMA0=250.0, ALPHA=0.5, N=10.0)
+    group = get("elements", element)(np.arange(len(conn)), conn, xy, law, 1.0)
+    group.use_kernels(True)
+    pattern = Pattern(2 * len(xy), [group.dofs])
+    rng = np.random.default_rng(0)
+    u = np.c_[0.002 * xy[:, 0], -0.004 * xy[:, 1]] + 1e-4 * rng.standard_normal(xy.shape)
+    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, foundation_old={}, foundation_new={})
+    u_old = 0.9 * u
+    first = group.compute_into(u_old, np.zeros_like(u), group.init_state(), ctx, False, None,
+                               np.zeros(pattern.ndof), pattern.positions[0])
+    state = {k: np.array(v) for k, v in first.state.items()}
+    out = {}
+    for tangent in (True, False):
+        best = np.inf
+        for _ in range(repeat):
+            data, f = (np.zeros(pattern.nnz) if tangent else None), np.zeros(pattern.ndof)
+            t = time.process_time()
+            r = group.compute_into(u, u_old, state, ctx, tangent, data, f, pattern.positions[0])
+            best = min(best, time.process_time() - t)
+        out[tangent] = 1e6 * best / len(conn)
+    plastic = float((r.state["peeq"] > state["peeq"]).mean())
+    return (f"{element} {size}, {len(conn)} elements, {plastic:.0%} of the points plastic: "
+            f"with tangent {out[True]:.3f} us per element, forces only {out[False]:.3f}")
+
+
 def _bits(a: np.ndarray) -> np.ndarray:
     """The bytes of ``a``: -0.0 is not 0.0, a NaN's payload counts (np.array_equal would not)."""
     return np.ascontiguousarray(a).view(np.uint8) if a.dtype.kind in "fcbiu" else a
@@ -130,12 +173,17 @@ def _groups(calls):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", nargs="+", help="NXxNY (press-then-slide) or deck files")
+    ap.add_argument("what", nargs="*", help="NXxNY (press-then-slide) or deck files")
+    ap.add_argument("--plastic", metavar="NXxNY", help="the plastic block instead")
+    ap.add_argument("--element", default="Q8PE")
     ap.add_argument("--calls", type=int, default=24)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--save")
     ap.add_argument("--check")
     a = ap.parse_args(argv)
+    if a.plastic:
+        print(plastic_block(a.plastic, a.element, a.repeat))
+        return 0
     runs, got, saved = {}, {}, {}
     if a.check:        # the calls the answers were saved from: a changed result moves a run
         with open(a.check + ".calls.pickle", "rb") as fh:
