@@ -298,3 +298,29 @@ def test_the_full_tangent_is_not_alive_through_the_factorisation():
                            StepContext(), np.array([0.2]), f_ext, Settings(rtol=1e-12))
     assert conv.iterations >= 3 and len(solver.alive_at_factor) == conv.iterations
     assert solver.alive_at_factor == [0] * conv.iterations
+
+
+def test_all_finite_is_the_entrywise_test():
+    """Newton's non-finite tests (the tangent's data, the correction) read a dot product first:
+    the same verdict as ``np.all(np.isfinite(a))`` for every case, an overflowing dot of finite
+    entries (settled entry-wise) and an infinity whose partner is zero included."""
+    from lagamine_py.solver.newton import _all_finite
+    rng = np.random.default_rng(3)
+    base = rng.standard_normal(1000)
+    cases = {"finite": base, "empty": np.zeros(0), "zeros": np.zeros(7)}
+    for name, bad in (("nan", np.nan), ("inf", np.inf), ("-inf", -np.inf),
+                      ("huge", 1e200), ("max", np.finfo(float).max)):
+        a = base.copy()
+        a[17] = bad
+        cases[name] = a
+    cases["inf and -inf"] = np.array([np.inf, -np.inf, 1.0])
+    for name, a in cases.items():
+        assert _all_finite(a) is bool(np.all(np.isfinite(a))), name
+    # with a given product: an infinity against a zero still makes it non-finite (NaN)
+    other = np.ones(1000)
+    other[17] = 0.0
+    for name in ("finite", "nan", "inf", "-inf", "huge", "max"):
+        a = cases[name]
+        with np.errstate(all="ignore"):
+            dot = abs(float(a @ other))
+        assert _all_finite(a, dot) is bool(np.all(np.isfinite(a))), name

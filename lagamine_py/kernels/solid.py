@@ -357,22 +357,39 @@ def _force_and_tangent(nen, dx, hh, tau, D, M, w, tangent, f, Ke, geometric, axi
         return
     wt00, wt11, wt01 = (t0, t1, t3) if geometric else (0.0, 0.0, 0.0)
     cax = t2 / (r * r) if geometric and axisym else 0.0
+    # Exact zeros are left out of the sums: M[2, 2b+1] (a radial stretch only from u_r), in
+    # plane strain M[2, :] (no hoop row) and p2, q2 (unread), in small strain the geometric
+    # terms.  Each dropped term is a +-0.0 added in place, so a sum it left out differs at most
+    # by the sign of a zero, which Ke does not keep (its sums start from +0.0: +0.0 + -0.0 is
+    # +0.0); a non-finite D is a failure (the law's ok) before Ke is read.
     for b in range(nen):
         c0, c1 = 2 * b, 2 * b + 1
+        m00, m10, m30 = M[0, c0], M[1, c0], M[3, c0]
+        m01, m11, m31 = M[0, c1], M[1, c1], M[3, c1]
         # columns of w D M for the two DOFs of node b
-        p0 = w * (D[0, 0] * M[0, c0] + D[0, 1] * M[1, c0] + D[0, 2] * M[2, c0] + D[0, 3] * M[3, c0])
-        p1 = w * (D[1, 0] * M[0, c0] + D[1, 1] * M[1, c0] + D[1, 2] * M[2, c0] + D[1, 3] * M[3, c0])
-        p2 = w * (D[2, 0] * M[0, c0] + D[2, 1] * M[1, c0] + D[2, 2] * M[2, c0] + D[2, 3] * M[3, c0])
-        p3 = w * (D[3, 0] * M[0, c0] + D[3, 1] * M[1, c0] + D[3, 2] * M[2, c0] + D[3, 3] * M[3, c0])
-        q0 = w * (D[0, 0] * M[0, c1] + D[0, 1] * M[1, c1] + D[0, 2] * M[2, c1] + D[0, 3] * M[3, c1])
-        q1 = w * (D[1, 0] * M[0, c1] + D[1, 1] * M[1, c1] + D[1, 2] * M[2, c1] + D[1, 3] * M[3, c1])
-        q2 = w * (D[2, 0] * M[0, c1] + D[2, 1] * M[1, c1] + D[2, 2] * M[2, c1] + D[2, 3] * M[3, c1])
-        q3 = w * (D[3, 0] * M[0, c1] + D[3, 1] * M[1, c1] + D[3, 2] * M[2, c1] + D[3, 3] * M[3, c1])
-        # geometric: w dN_b/dx_j tau_ji (i = 0, 1) and the hoop term's w tau33 / r^2 N_b
-        T0 = dx[b, 0] * wt00 + dx[b, 1] * wt01
-        T1 = dx[b, 0] * wt01 + dx[b, 1] * wt11
-        # material and geometric parts share their factors dN_a/dx_k
-        a00, a11, b11, b00 = p0 - T0, q3 - T0, p3 - T1, q1 - T1
+        if axisym:
+            m20 = M[2, c0]
+            p0 = w * (D[0, 0] * m00 + D[0, 1] * m10 + D[0, 2] * m20 + D[0, 3] * m30)
+            p1 = w * (D[1, 0] * m00 + D[1, 1] * m10 + D[1, 2] * m20 + D[1, 3] * m30)
+            p2 = w * (D[2, 0] * m00 + D[2, 1] * m10 + D[2, 2] * m20 + D[2, 3] * m30)
+            p3 = w * (D[3, 0] * m00 + D[3, 1] * m10 + D[3, 2] * m20 + D[3, 3] * m30)
+            q2 = w * (D[2, 0] * m01 + D[2, 1] * m11 + D[2, 3] * m31)
+        else:
+            p0 = w * (D[0, 0] * m00 + D[0, 1] * m10 + D[0, 3] * m30)
+            p1 = w * (D[1, 0] * m00 + D[1, 1] * m10 + D[1, 3] * m30)
+            p3 = w * (D[3, 0] * m00 + D[3, 1] * m10 + D[3, 3] * m30)
+            p2 = q2 = 0.0
+        q0 = w * (D[0, 0] * m01 + D[0, 1] * m11 + D[0, 3] * m31)
+        q1 = w * (D[1, 0] * m01 + D[1, 1] * m11 + D[1, 3] * m31)
+        q3 = w * (D[3, 0] * m01 + D[3, 1] * m11 + D[3, 3] * m31)
+        # material and geometric parts share their factors dN_a/dx_k; geometric: w dN_b/dx_j
+        # tau_ji (i = 0, 1) and the hoop term's w tau33 / r^2 N_b
+        if geometric:
+            T0 = dx[b, 0] * wt00 + dx[b, 1] * wt01
+            T1 = dx[b, 0] * wt01 + dx[b, 1] * wt11
+            a00, a11, b11, b00 = p0 - T0, q3 - T0, p3 - T1, q1 - T1
+        else:
+            a00, a11, b11, b00 = p0, q3, p3, q1
         if axisym:
             hb = cax * Nq[q, b]
             for a in range(nen):

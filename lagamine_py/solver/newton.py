@@ -195,12 +195,13 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
     energy0 = None
+    du = np.zeros_like(u)      # the correction: one array per increment (fresh pages per solve)
     solves = 0                 # the iteration count: a pass that only reviews solves nothing
+    f_ext_norm = float(np.linalg.norm(f_ext))
     for k in range(settings.maxit + 1):
         R = ev.f_int - f_ext
         Rf = R[free.free]
-        scale = max(float(np.linalg.norm(f_ext)), float(np.linalg.norm(R[c])), ev.scale, floor,
-                    1e-300)
+        scale = max(f_ext_norm, float(np.linalg.norm(R[c])), ev.scale, floor, 1e-300)
         rel = float(np.linalg.norm(Rf)) / scale
         history.append(rel)
         if not np.isfinite(rel):
@@ -219,7 +220,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             raise IterationLimit(f"no convergence in {settings.maxit} iterations "
                                  f"(|R|/F = {rel:.3e})", history)
         _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
-        if not np.all(np.isfinite(ev.data)):       # else the solver calls it "singular"
+        if not _all_finite(ev.data):               # else the solver calls it "singular"
             raise NotANumber(f"non-finite tangent stiffness at iteration {k} (a material or "
                              f"penalty value near the float range overflows?)", history)
         rhs = -Rf - (free.kfc_dot(ev.data, du_imposed) if imposing else 0.0)
@@ -232,10 +233,9 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
         solves += 1
         energy = abs(float(du_f @ rhs))
         log.info("    iter %2d  |R|/F = %.3e  energy = %.3e", k, rel, energy)
-        if not np.all(np.isfinite(du_f)):
+        if not _all_finite(du_f, energy):
             raise NotANumber(f"non-finite correction at iteration {k}", history)
-        du = np.zeros_like(u)
-        du[free.free] = du_f
+        du[free.free] = du_f        # free and constrained DOFs partition du: all of it set
         du[c] = du_imposed[c]
         if energy0 is None:
             energy0 = max(energy, predicted_energy)
@@ -320,6 +320,20 @@ def _tangent_wanted(history: list[float], rtol: float):
     if len(history) < 2 or not history[-2] > 0.0:
         return True
     return LATER if history[-1] ** 3 <= 10.0 * rtol * history[-2] ** 2 else True
+
+
+def _all_finite(a: np.ndarray, dot: float | None = None) -> bool:
+    """``np.all(np.isfinite(a))``, exactly, from one dot product in the usual case: ``a . a``
+    (or ``dot``, its absolute value, ``a``'s dot product with another vector) is finite only
+    if every entry of ``a`` is (a NaN or an infinity, times anything, makes the sum NaN or
+    infinite); a non-finite one (an overflow of finite entries too, above 1e154) is settled by
+    the entry-wise test.  One read of ``a``
+    instead of a boolean temporary and its reduction: 6.7 -> 3.0 ms at 9.6M entries (the
+    tangent at 309k DOFs, every iteration)."""
+    if dot is None:
+        with np.errstate(over="ignore", invalid="ignore"):
+            dot = a @ a
+    return bool(np.isfinite(dot)) or bool(np.all(np.isfinite(a)))
 
 
 def _predicted_energy(problem, data, d: np.ndarray) -> float:

@@ -1,0 +1,234 @@
+"""The fused numba solid kernel's cost per call, and its answers bit for bit:
+``python tools/kernel_calls.py WHAT... [--calls N] [--repeat R] [--save F | --check F]``.
+
+The twin of ``tools/solid_calls.py`` for :mod:`lagamine_py.kernels.solid`.  ``WHAT``:
+``NXxNY``, press-then-slide at that mesh (``tools/bench.py``'s deck), or deck files
+(``decks/*.dat``).  Each is run with ``KERNEL=NUMBA``; the inputs of ``N`` of its solid groups'
+``compute_into`` calls spread over the run (displacements, committed state, context, the
+tangent asked, the pattern positions) are recorded, then replayed in their order into zeroed
+CSR data and force vectors:
+
+* the time per call with and without the tangent (best of ``R`` passes over the calls, CPU),
+  with the start of the increment (F_old^-1, b_e_n) computed again at every call, as at a
+  Newton iteration's first evaluation, and kept (``kept start``), as at the later ones,
+* ``--save F``: every answer (the scattered data and force, the element forces, the trial
+  state, the failure) to ``F`` (npz) and the calls to ``F.calls.pickle``; ``--check F``: the
+  saved calls replayed and their answers compared bit for bit with ``F`` (exit 1 on any
+  difference).  Save with one tree and check with another (``PYTHONPATH=<tree> python
+  tools/kernel_calls.py ...``): a change that keeps every byte keeps every run's path.
+
+``--plastic NXxNY [--element Q8PE]``: instead, the ``tools/bench.py assembly`` group (a
+Ramberg-Osgood Q8 block, NLGEOM) from a committed state at 0.9 of its displacement, every point
+plastic (the ln P branch of the return map, as in press-then-slide's plastic zone): us per
+element with and without the tangent, the start of the increment kept (best of ``R`` calls,
+CPU).  Steadier than replayed calls under load: one large call.
+
+Timings only, never asserted in tests; what the kernel computes is held by the tests.
+"""
+from __future__ import annotations
+
+import argparse
+import pickle
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def record(what: str, calls: int):
+    """The inputs of ``calls`` of the fused solid groups' calls in the run of ``what``
+    (``NXxNY`` or a deck file), evenly spread, and how many the run made."""
+    from bench import press_slide_deck
+
+    from lagamine_py.deck import load_deck
+    from lagamine_py.elements.solid import SolidElement
+    from lagamine_py.output import default_writers
+    from lagamine_py.solver import run
+
+    seen = []
+    real = SolidElement.compute_into
+
+    def kept(self, u_new, u_old, state, ctx, tangent, data, f_out, positions):
+        seen.append((self, np.array(u_new), np.array(u_old),
+                     {k: np.array(v) for k, v in state.items()}, ctx, bool(tangent),
+                     np.array(positions), int(np.max(positions)) + 1, len(f_out)))
+        return real(self, u_new, u_old, state, ctx, tangent, data, f_out, positions)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        if what.endswith(".dat"):
+            deck = Path(what).resolve()
+        else:
+            nx, ny = (int(n) for n in what.split("x"))
+            deck = Path(tmp) / "press_slide.dat"
+            deck.write_text(press_slide_deck(nx, ny))
+        model = load_deck(deck)
+        for step in model.steps:
+            step.controls["KERNEL"] = "NUMBA"
+        SolidElement.compute_into = kept
+        try:
+            run(model, Path(tmp) / "out", writers=default_writers(Path(tmp) / "out", model,
+                                                                  names=("STATUS",)),
+                deck_path=deck)
+        finally:
+            SolidElement.compute_into = real
+    pick = np.unique(np.linspace(0, len(seen) - 1, min(calls, len(seen))).round().astype(int))
+    return [seen[i] for i in pick], len(seen)
+
+
+def replay(call, tangent: bool, fresh_start: bool = True):
+    """One recorded call into zeroed data and force: (data, force, GroupResult)."""
+    g, un, uo, state, ctx, _, positions, nnz, ndof = call
+    if fresh_start:
+        g._cache.pop("kernel_old_key", None)
+    data, f = (np.zeros(nnz) if tangent else None), np.zeros(ndof)
+    r = g.compute_into(un, uo, state, ctx, tangent, data, f, positions)
+    return data, f, r
+
+
+def answers(calls, prefix: str = "") -> dict[str, np.ndarray]:
+    """Every output of every call, with and without the tangent."""
+    out = {}
+    for n, call in enumerate(calls):
+        for mode, t in (("now", True), ("none", False)):
+            data, f, r = replay(call, t)
+            key = f"{prefix}{n}/{mode}"
+            out[f"{key}/failure"] = np.array(str(r.failure or ""))
+            out[f"{key}/f_out"] = f
+            out[f"{key}/f"] = np.asarray(r.f)
+            if t:
+                out[f"{key}/data"] = data
+            for k, v in (r.state or {}).items():
+                out[f"{key}/state/{k}"] = np.asarray(v)
+    return out
+
+
+def cpu_per_call(calls, tangent: bool, repeat: int, fresh_start: bool) -> float:
+    """Best over ``repeat`` passes of the CPU per call (s), the zeroed arrays' cost excluded."""
+    best = np.inf
+    for _ in range(repeat):
+        spent = 0.0
+        for call in calls:
+            g, un, uo, state, ctx, _, positions, nnz, ndof = call
+            if fresh_start:
+                g._cache.pop("kernel_old_key", None)
+            else:                                   # the start arrays of this call kept
+                g.compute_into(un, uo, state, ctx, False, None, np.zeros(ndof), positions)
+            data, f = (np.zeros(nnz) if tangent else None), np.zeros(ndof)
+            t = time.process_time()
+            g.compute_into(un, uo, state, ctx, tangent, data, f, positions)
+            spent += time.process_time() - t
+        best = min(best, spent / len(calls))
+    return best
+
+
+def plastic_block(size: str, element: str, repeat: int) -> str:
+    """us per element of the fused kernel on the assembly group from a plastic committed state
+    (``--plastic``)."""
+    from bench import E_STEEL, structured_q8
+
+    from lagamine_py.elements.base import StepContext
+    from lagamine_py.registry import get
+    from lagamine_py.solver.pattern import Pattern
+
+    nx, ny = (int(n) for n in size.split("x"))
+    xy, conn = structured_q8(nx, ny)
+    xy = xy + [10.0, 0.0]                                   # off the axis (axisymmetric)
+    law = get("laws", "RAMBERG_OSGOOD")(E=E_STEEL, NU=0.3, SIGMA0=250.0, ALPHA=0.5, N=10.0)
+    group = get("elements", element)(np.arange(len(conn)), conn, xy, law, 1.0)
+    group.use_kernels(True)
+    pattern = Pattern(2 * len(xy), [group.dofs])
+    rng = np.random.default_rng(0)
+    u = np.c_[0.002 * xy[:, 0], -0.004 * xy[:, 1]] + 1e-4 * rng.standard_normal(xy.shape)
+    ctx = StepContext(nlgeom=True, t_old=0.0, t_new=1.0, foundation_old={}, foundation_new={})
+    u_old = 0.9 * u
+    first = group.compute_into(u_old, np.zeros_like(u), group.init_state(), ctx, False, None,
+                               np.zeros(pattern.ndof), pattern.positions[0])
+    state = {k: np.array(v) for k, v in first.state.items()}
+    out = {}
+    for tangent in (True, False):
+        best = np.inf
+        for _ in range(repeat):
+            data, f = (np.zeros(pattern.nnz) if tangent else None), np.zeros(pattern.ndof)
+            t = time.process_time()
+            r = group.compute_into(u, u_old, state, ctx, tangent, data, f, pattern.positions[0])
+            best = min(best, time.process_time() - t)
+        out[tangent] = 1e6 * best / len(conn)
+    plastic = float((r.state["peeq"] > state["peeq"]).mean())
+    return (f"{element} {size}, {len(conn)} elements, {plastic:.0%} of the points plastic: "
+            f"with tangent {out[True]:.3f} us per element, forces only {out[False]:.3f}")
+
+
+def _bits(a: np.ndarray) -> np.ndarray:
+    """The bytes of ``a``: -0.0 is not 0.0, a NaN's payload counts (np.array_equal would not)."""
+    return np.ascontiguousarray(a).view(np.uint8) if a.dtype.kind in "fcbiu" else a
+
+
+def _groups(calls):
+    return {id(c[0]): c[0] for c in calls}.values()
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("what", nargs="*", help="NXxNY (press-then-slide) or deck files")
+    ap.add_argument("--plastic", metavar="NXxNY", help="the plastic block instead")
+    ap.add_argument("--element", default="Q8PE")
+    ap.add_argument("--calls", type=int, default=24)
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--save")
+    ap.add_argument("--check")
+    a = ap.parse_args(argv)
+    if a.plastic:
+        print(plastic_block(a.plastic, a.element, a.repeat))
+        return 0
+    runs, got, saved = {}, {}, {}
+    if a.check:        # the calls the answers were saved from: a changed result moves a run
+        with open(a.check + ".calls.pickle", "rb") as fh:
+            saved = pickle.load(fh)
+    for what in a.what:
+        if what in saved:
+            calls, total = saved[what]
+        else:
+            calls, total = record(what, a.calls)
+        for g in _groups(calls):
+            g._cache, g._views = {}, None                            # as built
+        runs[what] = calls, total
+        ne = sum(len(g.conn) for g in _groups(calls))
+        print(f"{what}: {ne} solid elements, {len(calls)} of the run's {total} fused "
+              f"evaluations replayed")
+        got.update(answers(calls, f"{what}/"))
+    code = 0
+    if a.save:
+        np.savez(a.save, **got)
+        for calls, _ in runs.values():
+            for g in _groups(calls):
+                g._cache, g._views = {}, None
+        with open(a.save + ".calls.pickle", "wb") as fh:
+            pickle.dump({w: (c, t) for w, (c, t) in runs.items()}, fh)
+        print(f"answers saved to {a.save} ({len(got)} arrays)")
+    if a.check:
+        ref = {k: v for k, v in np.load(a.check).items()          # the runs asked for only
+               if any(k.startswith(w + "/") for w in runs)}
+        differ = sorted(set(ref) ^ set(got))
+        differ += [k for k in ref if k in got and not (
+            ref[k].shape == got[k].shape and ref[k].dtype == got[k].dtype
+            and np.array_equal(_bits(ref[k]), _bits(got[k])))]
+        print(f"bit for bit against {a.check}: "
+              + ("identical" if not differ else f"{len(differ)} arrays differ: {differ[:8]}"))
+        code = 1 if differ else 0
+    for what, (calls, _) in runs.items():
+        elements = np.mean([len(c[0].conn) for c in calls])
+        print(what)
+        for label, t, fresh in (("with tangent", True, False), ("forces only", False, False),
+                                ("tangent, fresh start", True, True)):
+            cpu = cpu_per_call(calls, t, a.repeat, fresh)
+            print(f"  {label:22s} {cpu * 1e3:8.3f} ms CPU per call, "
+                  f"{cpu / elements * 1e6:6.3f} us per element")
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
