@@ -65,6 +65,13 @@ DIVERGED_REL = 1e10          # a relative residual above this is a blow-up
 #: over 6 and is now cut back there (80 -> 68 iterations in all); every study run the limit
 #: changed got cheaper (docs/performance.md, "A growth limit for SDI")
 SDI_GROWTH_LIMIT = 6
+#: the iteration limit's rate rule (after Abaqus' logarithmic-rate check, read the other way):
+#: at MAXIT, an attempt whose last iteration switched no state and whose residual falls at a
+#: rate that reaches RTOL within this many more solves (:func:`_solves_to_go`) goes on, at
+#: most this many iterations past MAXIT.  The onset of sliding at 320x160 stood at |R|/F
+#: 6.8e-3 -> 1.4e-4 when MAXIT stopped it two solves short (docs/performance.md, "The onset
+#: of sliding, robust")
+RATE_GRACE = 3
 FLOOR_FRACTION = 1e-6        # floor of the force scale, times the largest earlier scale
 
 
@@ -196,7 +203,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
     history: list[float] = []
     energy0 = None
     solves = 0                 # the iteration count: a pass that only reviews solves nothing
-    for k in range(settings.maxit + 1):
+    for k in range(settings.maxit + RATE_GRACE + 1):
         R = ev.f_int - f_ext
         Rf = R[free.free]
         scale = max(float(np.linalg.norm(f_ext)), float(np.linalg.norm(R[c])), ev.scale, floor,
@@ -215,9 +222,9 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             if done is not None:
                 return done
             continue
-        if k == settings.maxit:
-            raise IterationLimit(f"no convergence in {settings.maxit} iterations "
-                                 f"(|R|/F = {rel:.3e})", history)
+        if k >= settings.maxit and not _rate_grants(history, settings, k, watch, ev.states):
+            raise IterationLimit(f"no convergence in {k} iterations (|R|/F = {rel:.3e})",
+                                 history)
         _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
         if not np.all(np.isfinite(ev.data)):       # else the solver calls it "singular"
             raise NotANumber(f"non-finite tangent stiffness at iteration {k} (a material or "
@@ -270,8 +277,8 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
         du_imposed[:] = 0.0
     # a solve that converged with held values on the last allowed iteration, whose review
     # asked for more iterations
-    raise IterationLimit(f"no convergence in {settings.maxit} iterations (|R|/F = {history[-1]:.3e})",
-                         history)
+    raise IterationLimit(f"no convergence in {settings.maxit + RATE_GRACE} iterations "
+                         f"(|R|/F = {history[-1]:.3e})", history)
 
 
 class _Observers:
@@ -309,6 +316,35 @@ class _Observers:
 
     def switching(self, states) -> bool:
         return any(o.switching(states) for o in self.all)
+
+
+def _rate_grants(history: list[float], settings: Settings, k: int, watch, states) -> bool:
+    """At iteration ``k >= MAXIT``: True when Newton may go on (the rate rule,
+    :data:`RATE_GRACE`): ``k`` is less than MAXIT + RATE_GRACE, no watched state switched over
+    the last solve (an equilibrium iteration, not a search for states) and the residual reaches
+    RTOL within ``MAXIT + RATE_GRACE - k`` more solves by :func:`_solves_to_go`."""
+    room = settings.maxit + RATE_GRACE - k
+    to_go = _solves_to_go(history, settings.rtol, room) if room > 0 else None
+    if to_go is None or watch.switching(states):
+        return False
+    log.info("    iter %2d  past MAXIT: |R|/F reaches RTOL in %d more solve(s) at its rate", k,
+             to_go)
+    return True
+
+
+def _solves_to_go(history: list[float], rtol: float, most: int) -> int | None:
+    """How many more solves Newton's quadratic model ``r_k+1 = r_k^3 / r_k-1^2`` (the ratio of
+    successive residuals squared at each solve, as :func:`_tangent_wanted` assumes) needs from
+    the last two residuals to reach ``rtol``; None when it needs more than ``most`` (always
+    when the residual did not fall over the last solve: the model then grows or stalls)."""
+    if len(history) < 2 or not history[-2] > 0.0:
+        return None
+    prev, r = history[-2], history[-1]
+    for n in range(1, most + 1):
+        prev, r = r, r ** 3 / prev ** 2
+        if r <= rtol:
+            return n
+    return None
 
 
 def _tangent_wanted(history: list[float], rtol: float):
