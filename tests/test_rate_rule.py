@@ -5,14 +5,17 @@ RTOL within the iterations left past MAXIT by Newton's quadratic model.
 Newton on ``k atan(d) = F`` (k = 1, F = 1.45, from d = 0) needs 8 solves, its residual
 1, 0.33, 0.14, 5.4e-2, 1.5e-2, 2.0e-3, 4.7e-5, 2.6e-8, 8e-15 (measured, converging as the
 model says once in the basin): the sequence the tests cut with MAXIT."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from lagamine_py.core.errors import IterationLimit
-from lagamine_py.elements.base import StepContext
+from lagamine_py.elements.base import GroupResult, StepContext
 from lagamine_py.solver import newton
 from lagamine_py.solver.linear import SpluSolver
 from lagamine_py.solver.newton import IterationObserver, Settings, solve_increment
+from lagamine_py.solver.stabilisation import FlipFlop
 
 from test_solver_fakes import GROUND, Atan, Springs
 from test_solver_newton import setup
@@ -77,3 +80,81 @@ def test_no_grace_while_states_switch():
     with pytest.raises(IterationLimit) as err:
         _atan(6, (Switching(),))
     assert len(err.value.history) == 7
+
+
+# ------------------------------------------------- a release restarts the count (FlipFlop)
+
+
+class HeldLinear(Atan):
+    """k atan(d), or the linear spring k d while a context holds values: the held law
+    converges in one solve, where the free law disagrees."""
+
+    def compute(self, u_new, u_old, state, ctx, tangent=True):
+        if ctx.freeze_contact is None:
+            return super().compute(u_new, u_old, state, ctx, tangent)
+        d = self.elongation(u_new)
+        f, K = self.blocks(self.k * d, self.k + 0.0 * d)
+        return GroupResult(f, K if tangent else None, {})
+
+
+class HoldThenRestart(IterationObserver):
+    """Holds from the first evaluation; its first settle drops the hold and restarts the free
+    law with ``grant`` iterations."""
+
+    def __init__(self, grant):
+        self.grant, self.holding, self.restarted = grant, True, False
+
+    @property
+    def active(self):
+        return self.holding
+
+    def start(self, ctx):
+        return replace(ctx, freeze_contact={"held": np.zeros(1, np.int8)})
+
+    def context(self, ctx, states):
+        return replace(ctx, freeze_contact={"held": np.zeros(1, np.int8)}) if self.holding else ctx
+
+    def settle(self, ctx, states):
+        self.holding, self.restarted = False, True
+        return ctx
+
+    def restart_iterations(self):
+        return self.grant if self.restarted else 0
+
+
+def _held_atan(maxit, grant):
+    problem, free = setup([HeldLinear([[GROUND, 0]], 1.0), Springs([[GROUND, 1]], 1.0)], 1, [])
+    return solve_increment(problem, SpluSolver(), free, np.zeros(2), problem.init_states(),
+                           StepContext(), np.zeros(0), np.array([1.2, 0.0]),
+                           Settings(maxit=maxit), observers=(HoldThenRestart(grant),))
+
+
+def test_a_restart_is_granted_its_iterations_past_maxit():
+    """The held law converges at once (solve 1), the review rejects it, the free law needs 5
+    more solves: MAXIT = 3 stops it unless the restart is granted its iterations."""
+    reference = _held_atan(40, 0)
+    assert reference.iterations == 6
+    with pytest.raises(IterationLimit) as err:
+        _held_atan(3, 0)
+    assert err.value.solves == 3
+    conv = _held_atan(3, 10)
+    assert conv.iterations == 6 and conv.u.tolist() == reference.u.tolist()
+    assert np.tan(1.2) == pytest.approx(conv.u[0], rel=1e-10)      # |R|/F 1.3e-12
+    with pytest.raises(IterationLimit):                   # counted from the restart's pass
+        _held_atan(3, 4)
+
+
+def test_flipflop_grants_iterations_to_its_release_only():
+    """FlipFlop.settle: the rounds that adjust frozen points grant nothing, the release grants
+    release_iterations, the failure after it nothing."""
+    ff = FlipFlop({0: "C"}, limit=1)
+    st = {"status": np.array([1, 2], np.int8), "tau": np.array([0.0, 1.0]), "p": np.ones(2)}
+    ff.context(StepContext(), [st])
+    ff.context(StepContext(), [dict(st, status=np.array([2, 2], np.int8))])   # point 0 frozen
+    assert ff.active
+    grants = []
+    for _ in range(FlipFlop.max_rounds + 1):
+        assert ff.settle(StepContext(), [st]) is not None
+        grants.append(ff.restart_iterations())
+    assert grants == [0] * FlipFlop.max_rounds + [FlipFlop.release_iterations]
+    assert FlipFlop.release_iterations > 0 and not ff.active

@@ -20,6 +20,11 @@ first iterations and the residual grows while they find their states (press-then
 back its first slide increment at every mesh for it).  MAXIT and the blow-up test still bound
 the increment; an increment with no state change is judged as before, bit for bit.
 
+The iteration limit: MAXIT, or later when an observer restarts the search after a failed review
+(:meth:`IterationObserver.restart_iterations`: the contact stabilisation's release of every
+frozen point); past it, the rate rule (:data:`RATE_GRACE`) lets an attempt that converges
+without states switching finish.
+
 Linear solves go through :class:`~lagamine_py.solver.reuse.FactorReuse` (``*CONTROLS
 KRYLOV``): GMRES on the factor in hand when it converges within a few steps, a new
 factorisation otherwise.
@@ -129,6 +134,13 @@ class IterationObserver:
         grows then is the search for the states, not a divergence."""
         return False
 
+    def restart_iterations(self) -> int:
+        """Asked after :meth:`settle`: the iterations Newton grants the context it returned,
+        counted from that pass and past MAXIT if need be, when that context restarts the search
+        (every held value dropped: the free law from the iterate reached); 0 (the default) for
+        a settle that only adjusts what is held."""
+        return 0
+
 
 @dataclass
 class Converged:
@@ -203,7 +215,10 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
     history: list[float] = []
     energy0 = None
     solves = 0                 # the iteration count: a pass that only reviews solves nothing
-    for k in range(settings.maxit + RATE_GRACE + 1):
+    limit = settings.maxit     # MAXIT, or later after a restart (IterationObserver.restart_iterations)
+    k = -1
+    while True:
+        k += 1
         R = ev.f_int - f_ext
         Rf = R[free.free]
         scale = max(float(np.linalg.norm(f_ext)), float(np.linalg.norm(R[c])), ev.scale, floor,
@@ -221,8 +236,9 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
                                       scale, settings.rtol, history, k, solves)
             if done is not None:
                 return done
+            limit = max(limit, k + watch.restart_iterations())
             continue
-        if k >= settings.maxit and not _rate_grants(history, settings, k, watch, ev.states):
+        if k >= limit and not _rate_grants(history, settings, k, limit, watch, ev.states):
             raise IterationLimit(f"no convergence in {k} iterations (|R|/F = {rel:.3e})",
                                  history)
         _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
@@ -265,6 +281,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
                                       k + 1, solves)
             if done is not None:
                 return done
+            limit = max(limit, k + 1 + watch.restart_iterations())
             continue
         ctx_k = watch.context(ctx, ev.states)
         if settings.linesearch and not imposing:
@@ -275,10 +292,6 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             ev = problem.evaluate(u, u_old, states, ctx_k, _tangent_wanted(history, settings.rtol))
         imposing = False
         du_imposed[:] = 0.0
-    # a solve that converged with held values on the last allowed iteration, whose review
-    # asked for more iterations
-    raise IterationLimit(f"no convergence in {settings.maxit + RATE_GRACE} iterations "
-                         f"(|R|/F = {history[-1]:.3e})", history)
 
 
 class _Observers:
@@ -317,13 +330,18 @@ class _Observers:
     def switching(self, states) -> bool:
         return any(o.switching(states) for o in self.all)
 
+    def restart_iterations(self) -> int:
+        return max((o.restart_iterations() for o in self.all), default=0)
 
-def _rate_grants(history: list[float], settings: Settings, k: int, watch, states) -> bool:
-    """At iteration ``k >= MAXIT``: True when Newton may go on (the rate rule,
-    :data:`RATE_GRACE`): ``k`` is less than MAXIT + RATE_GRACE, no watched state switched over
-    the last solve (an equilibrium iteration, not a search for states) and the residual reaches
-    RTOL within ``MAXIT + RATE_GRACE - k`` more solves by :func:`_solves_to_go`."""
-    room = settings.maxit + RATE_GRACE - k
+
+def _rate_grants(history: list[float], settings: Settings, k: int, limit: int, watch,
+                 states) -> bool:
+    """At iteration ``k >= limit`` (MAXIT, or later after a restart): True when Newton may go
+    on (the rate rule, :data:`RATE_GRACE`): ``k`` is less than ``limit + RATE_GRACE``, no
+    watched state switched over the last solve (an equilibrium iteration, not a search for
+    states) and the residual reaches RTOL within ``limit + RATE_GRACE - k`` more solves by
+    :func:`_solves_to_go`."""
+    room = limit + RATE_GRACE - k
     to_go = _solves_to_go(history, settings.rtol, room) if room > 0 else None
     if to_go is None or watch.switching(states):
         return False
