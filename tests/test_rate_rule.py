@@ -129,9 +129,11 @@ def _held_atan(maxit, grant):
                            Settings(maxit=maxit), observers=(HoldThenRestart(grant),))
 
 
-def test_a_restart_is_granted_its_iterations_past_maxit():
-    """The held law converges at once (solve 1), the review rejects it, the free law needs 5
-    more solves: MAXIT = 3 stops it unless the restart is granted its iterations."""
+def test_a_restart_is_granted_its_iterations_past_maxit(monkeypatch):
+    """The held law converges at once (solve 1), the review (pass 1) rejects it, the free law
+    needs 5 more solves (|R|/F 0.27, 7.9e-2, 1.3e-2, 4.6e-4, 6.5e-7, 1.3e-12): MAXIT = 3 stops
+    it unless the restart is granted its iterations, counted from the review's pass; past them
+    the rate rule may finish it (4.6e-4 after 1.3e-2: two solves to go by the model)."""
     reference = _held_atan(40, 0)
     assert reference.iterations == 6
     with pytest.raises(IterationLimit) as err:
@@ -140,8 +142,13 @@ def test_a_restart_is_granted_its_iterations_past_maxit():
     conv = _held_atan(3, 10)
     assert conv.iterations == 6 and conv.u.tolist() == reference.u.tolist()
     assert np.tan(1.2) == pytest.approx(conv.u[0], rel=1e-10)      # |R|/F 1.3e-12
-    with pytest.raises(IterationLimit):                   # counted from the restart's pass
-        _held_atan(3, 4)
+    with pytest.raises(IterationLimit):                   # limit 3: the rate rule cannot reach
+        _held_atan(3, 2)
+    assert _held_atan(3, 3).iterations == 6               # limit 4, then the rate rule
+    monkeypatch.setattr(newton, "RATE_GRACE", 0)
+    with pytest.raises(IterationLimit):
+        _held_atan(3, 5)
+    assert _held_atan(3, 6).iterations == 6               # limit 7: pass 7 converges
 
 
 def test_flipflop_grants_iterations_to_its_release_only():
