@@ -209,13 +209,12 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
     du_imposed = np.zeros_like(u)
     du_imposed[c] = u_c - u[c]
     imposing = bool(np.any(du_imposed[c] != 0.0))
-    watch = _Observers(observers)
+    watch = _Observers(observers, settings.maxit)
     ctx_k = watch.start(ctx)
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
     energy0 = None
     solves = 0                 # the iteration count: a pass that only reviews solves nothing
-    limit = settings.maxit     # MAXIT, or later after a restart (IterationObserver.restart_iterations)
     k = -1
     while True:
         k += 1
@@ -236,9 +235,9 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
                                       scale, settings.rtol, history, k, solves)
             if done is not None:
                 return done
-            limit = max(limit, k + watch.restart_iterations())
             continue
-        if k >= limit and not _rate_grants(history, settings, k, limit, watch, ev.states):
+        if k >= watch.limit and not _rate_grants(history, settings, k, watch.limit, watch,
+                                                  ev.states):
             raise IterationLimit(f"no convergence in {k} iterations (|R|/F = {rel:.3e})",
                                  history)
         _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
@@ -281,7 +280,6 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
                                       k + 1, solves)
             if done is not None:
                 return done
-            limit = max(limit, k + 1 + watch.restart_iterations())
             continue
         ctx_k = watch.context(ctx, ev.states)
         if settings.linesearch and not imposing:
@@ -295,10 +293,13 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
 
 
 class _Observers:
-    """The observers of an increment as one: the context passes through each in turn."""
+    """The observers of an increment as one: the context passes through each in turn.
+    ``limit``: the iteration limit, MAXIT or later after a restart (:meth:`restart_iterations`,
+    moved by :func:`_review`)."""
 
-    def __init__(self, observers):
+    def __init__(self, observers, limit: int):
         self.all = tuple(observers)
+        self.limit = limit
 
     @property
     def active(self) -> bool:
@@ -407,6 +408,7 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
     ctx_k = watch.settle(ctx, ev.states,
                          f"{held} disagree with the free law at convergence (|R|/F = {rel:.3e} "
                          f"with the free law)", history + [rel])
+    watch.limit = max(watch.limit, k + watch.restart_iterations())
     ev = None                       # (its tangent and states) not alive through the next one
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
