@@ -222,7 +222,7 @@ class OutputRequest:
 CONTROL_PARAMS: tuple[Param, ...] = (
     Param("RTOL", float, 1e-8, (0, 1), doc="relative force residual tolerance |R| / max(|F|, |RF|, floor)"),
     Param("ETOL", float, 1e-14, (0, 1), doc="relative energy tolerance |du.R| / first-iteration energy"),
-    Param("MAXIT", int, 25, (1, 1000), doc="Newton iterations before the increment is cut back"),
+    Param("MAXIT", int, 25, (1, 1000), doc="Newton iterations before the increment is cut back (up to 3 more when the residual, no contact state switching, reaches RTOL within them at its rate; 10 from a release of frozen contact points)"),
     Param("CUTBACK", float, 0.25, (0.01, 0.9), doc="factor applied to dt on a cut-back"),
     Param("GROWTH", float, 1.5, (1.0, 10.0), doc="factor applied to dt after an easy increment (not after a step's first increment, whose count is the contact-state search)"),
     Param("EASY", int, 5, (1, 1000), doc="an increment converged in at most this many iterations is easy"),

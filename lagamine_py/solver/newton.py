@@ -20,6 +20,11 @@ first iterations and the residual grows while they find their states (press-then
 back its first slide increment at every mesh for it).  MAXIT and the blow-up test still bound
 the increment; an increment with no state change is judged as before, bit for bit.
 
+The iteration limit: MAXIT, or later when an observer restarts the search after a failed review
+(:meth:`IterationObserver.restart_iterations`: the contact stabilisation's release of every
+frozen point); past it, the rate rule (:data:`RATE_GRACE`) lets an attempt that converges
+without states switching finish.
+
 Linear solves go through :class:`~lagamine_py.solver.reuse.FactorReuse` (``*CONTROLS
 KRYLOV``): GMRES on the factor in hand when it converges within a few steps, a new
 factorisation otherwise.
@@ -65,6 +70,13 @@ DIVERGED_REL = 1e10          # a relative residual above this is a blow-up
 #: over 6 and is now cut back there (80 -> 68 iterations in all); every study run the limit
 #: changed got cheaper (docs/performance.md, "A growth limit for SDI")
 SDI_GROWTH_LIMIT = 6
+#: the iteration limit's rate rule (after Abaqus' logarithmic-rate check, read the other way):
+#: at MAXIT, an attempt whose last iteration switched no state and whose residual falls at a
+#: rate that reaches RTOL within this many more solves (:func:`_solves_to_go`) goes on, at
+#: most this many iterations past MAXIT.  The onset of sliding at 320x160 stood at |R|/F
+#: 6.8e-3 -> 1.4e-4 when MAXIT stopped it two solves short (docs/performance.md, "The onset
+#: of sliding, robust")
+RATE_GRACE = 3
 FLOOR_FRACTION = 1e-6        # floor of the force scale, times the largest earlier scale
 
 
@@ -121,6 +133,13 @@ class IterationObserver:
         last in what the observer watches (contact points changing state): a residual that
         grows then is the search for the states, not a divergence."""
         return False
+
+    def restart_iterations(self) -> int:
+        """Asked after :meth:`settle`: the iterations Newton grants the context it returned,
+        counted from that pass and past MAXIT if need be, when that context restarts the search
+        (every held value dropped: the free law from the iterate reached); 0 (the default) for
+        a settle that only adjusts what is held."""
+        return 0
 
 
 @dataclass
@@ -190,7 +209,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
     du_imposed = np.zeros_like(u)
     du_imposed[c] = u_c - u[c]
     imposing = bool(np.any(du_imposed[c] != 0.0))
-    watch = _Observers(observers)
+    watch = _Observers(observers, settings.maxit)
     ctx_k = watch.start(ctx)
     ev = problem.evaluate(u, u_old, states, ctx_k, True)
     history: list[float] = []
@@ -198,7 +217,9 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
     du = np.zeros_like(u)      # the correction: one array per increment (fresh pages per solve)
     solves = 0                 # the iteration count: a pass that only reviews solves nothing
     f_ext_norm = float(np.linalg.norm(f_ext))
-    for k in range(settings.maxit + 1):
+    k = -1
+    while True:
+        k += 1
         R = ev.f_int - f_ext
         Rf = R[free.free]
         scale = max(f_ext_norm, float(np.linalg.norm(R[c])), ev.scale, floor, 1e-300)
@@ -216,9 +237,10 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             if done is not None:
                 return done
             continue
-        if k == settings.maxit:
-            raise IterationLimit(f"no convergence in {settings.maxit} iterations "
-                                 f"(|R|/F = {rel:.3e})", history)
+        if k >= watch.limit and not _rate_grants(history, settings, k, watch.limit, watch,
+                                                  ev.states):
+            raise IterationLimit(f"no convergence in {k} iterations (|R|/F = {rel:.3e})",
+                                 history)
         _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
         if not _all_finite(ev.data):               # else the solver calls it "singular"
             raise NotANumber(f"non-finite tangent stiffness at iteration {k} (a material or "
@@ -268,17 +290,16 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             ev = problem.evaluate(u, u_old, states, ctx_k, _tangent_wanted(history, settings.rtol))
         imposing = False
         du_imposed[:] = 0.0
-    # a solve that converged with held values on the last allowed iteration, whose review
-    # asked for more iterations
-    raise IterationLimit(f"no convergence in {settings.maxit} iterations (|R|/F = {history[-1]:.3e})",
-                         history)
 
 
 class _Observers:
-    """The observers of an increment as one: the context passes through each in turn."""
+    """The observers of an increment as one: the context passes through each in turn.
+    ``limit``: the iteration limit, MAXIT or later after a restart (:meth:`restart_iterations`,
+    moved by :func:`_review`)."""
 
-    def __init__(self, observers):
+    def __init__(self, observers, limit: int):
         self.all = tuple(observers)
+        self.limit = limit
 
     @property
     def active(self) -> bool:
@@ -309,6 +330,40 @@ class _Observers:
 
     def switching(self, states) -> bool:
         return any(o.switching(states) for o in self.all)
+
+    def restart_iterations(self) -> int:
+        return max((o.restart_iterations() for o in self.all), default=0)
+
+
+def _rate_grants(history: list[float], settings: Settings, k: int, limit: int, watch,
+                 states) -> bool:
+    """At iteration ``k >= limit`` (MAXIT, or later after a restart): True when Newton may go
+    on (the rate rule, :data:`RATE_GRACE`): ``k`` is less than ``limit + RATE_GRACE``, no
+    watched state switched over the last solve (an equilibrium iteration, not a search for
+    states) and the residual reaches RTOL within ``limit + RATE_GRACE - k`` more solves by
+    :func:`_solves_to_go`."""
+    room = limit + RATE_GRACE - k
+    to_go = _solves_to_go(history, settings.rtol, room) if room > 0 else None
+    if to_go is None or watch.switching(states):
+        return False
+    log.info("    iter %2d  past MAXIT: |R|/F reaches RTOL in %d more solve(s) at its rate", k,
+             to_go)
+    return True
+
+
+def _solves_to_go(history: list[float], rtol: float, most: int) -> int | None:
+    """How many more solves Newton's quadratic model ``r_k+1 = r_k^3 / r_k-1^2`` (the ratio of
+    successive residuals squared at each solve, as :func:`_tangent_wanted` assumes) needs from
+    the last two residuals to reach ``rtol``; None when it needs more than ``most`` (always
+    when the residual did not fall over the last solve: the model then grows or stalls)."""
+    if len(history) < 2 or not history[-2] > 0.0:
+        return None
+    prev, r = history[-2], history[-1]
+    for n in range(1, most + 1):
+        prev, r = r, r ** 3 / prev ** 2
+        if r <= rtol:
+            return n
+    return None
 
 
 def _tangent_wanted(history: list[float], rtol: float):
@@ -367,6 +422,7 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
     ctx_k = watch.settle(ctx, ev.states,
                          f"{held} disagree with the free law at convergence (|R|/F = {rel:.3e} "
                          f"with the free law)", history + [rel])
+    watch.limit = max(watch.limit, k + watch.restart_iterations())
     ev = None                       # (its tangent and states) not alive through the next one
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 

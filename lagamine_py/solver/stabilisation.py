@@ -55,8 +55,9 @@ class FlipFlop(IterationObserver):
     law's status and Newton goes on, at most ``max_rounds`` times.  Then, ``releases`` times
     per increment, every point is released (counts cleared) and Newton goes on with the free
     law from the iterate reached, which the frozen law has brought next to the answer but for
-    the points in dispute; MAXIT still bounds the increment.  Only increments that would have
-    been cut back ("contact status did not settle") take that path.
+    the points in dispute; the increment then has ``release_iterations`` iterations from the
+    release on, past MAXIT if need be (:meth:`restart_iterations`).  Only increments that would
+    have been cut back ("contact status did not settle") take that path.
 
     ``watched``: group index -> contact group name, the groups whose states are watched.
     ``ctx.freeze_contact`` becomes ``{group_name: (g,) int8}`` with -1 for free points and the
@@ -65,6 +66,13 @@ class FlipFlop(IterationObserver):
 
     max_rounds = 2
     releases = 1
+    #: iterations a release is granted, counted from its pass, past MAXIT if need be (Abaqus'
+    #: I_R for severely discontinuous problems, *CONTROLS, ANALYSIS=DISCONTINUOUS: iterations
+    #: before the convergence rate is judged).  The free law from the iterate the frozen law
+    #: reached searches the few disputed points' states again, a front of one or two points a
+    #: solve: 2 solves at the 320x160 onset of sliding, 7 with the solid kernel's round-off
+    #: changed, where MAXIT came first (docs/performance.md, "The onset of sliding, robust")
+    release_iterations = 10
     held = "frozen contact points"
     failure = ContactNotSettled
 
@@ -77,6 +85,7 @@ class FlipFlop(IterationObserver):
         self.frozen: dict[int, np.ndarray] = {}
         self.rounds = 0
         self.released = 0
+        self.restarted = False       # the last settle released every point
 
     @property
     def active(self) -> bool:
@@ -109,6 +118,10 @@ class FlipFlop(IterationObserver):
             self.last[k] = code.copy()
         return self._with_frozen(ctx)
 
+    def restart_iterations(self) -> int:
+        """:attr:`release_iterations` after a release, else 0."""
+        return self.release_iterations if self.restarted else 0
+
     def switching(self, states) -> bool:
         """Some watched point's state differs from the last evaluation's."""
         return any(k in self.last and self.last[k].shape == code.shape
@@ -126,10 +139,12 @@ class FlipFlop(IterationObserver):
         return the context for more iterations; once ``max_rounds`` are used up, every point
         released and the increment's own context (``releases`` times), then None."""
         self.rounds += 1
+        self.restarted = False
         if self.rounds > self.max_rounds:
             if self.released >= self.releases:
                 return None
             self.released += 1
+            self.restarted = True
             log.info("      every frozen contact point released: the free law from this iterate")
             self.rounds = 0
             self.count.clear()
