@@ -71,7 +71,7 @@ def test_a_slow_rate_is_stopped_once_the_model_needs_more_than_the_room():
     with pytest.raises(IterationLimit) as err:
         _atan(4)
     assert len(err.value.history) == 6 and err.value.solves == 5
-    assert "no convergence in 5 iterations" in str(err.value)
+    assert "no convergence in 5 iterations (5 linear solves, |R|/F = " in str(err.value)
 
 
 def test_no_grace_while_states_switch():

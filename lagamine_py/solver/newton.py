@@ -239,8 +239,9 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             continue
         if k >= watch.limit and not _rate_grants(history, settings, k, watch.limit, watch,
                                                   ev.states):
-            raise IterationLimit(f"no convergence in {k} iterations (|R|/F = {rel:.3e})",
-                                 history)
+            # iterations count the review passes too, which solve nothing; the .sta counts solves
+            raise IterationLimit(f"no convergence in {k} iterations ({solves} linear solves, "
+                                 f"|R|/F = {rel:.3e})", history)
         _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
         if not _all_finite(ev.data):               # else the solver calls it "singular"
             raise NotANumber(f"non-finite tangent stiffness at iteration {k} (a material or "
