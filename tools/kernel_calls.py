@@ -30,7 +30,6 @@ from __future__ import annotations
 import argparse
 import pickle
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -42,41 +41,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 def record(what: str, calls: int):
     """The inputs of ``calls`` of the fused solid groups' calls in the run of ``what``
     (``NXxNY`` or a deck file), evenly spread, and how many the run made."""
-    from bench import press_slide_deck
+    from solid_calls import record_calls
 
-    from lagamine_py.deck import load_deck
-    from lagamine_py.elements.solid import SolidElement
-    from lagamine_py.output import default_writers
-    from lagamine_py.solver import run
-
-    seen = []
-    real = SolidElement.compute_into
-
-    def kept(self, u_new, u_old, state, ctx, tangent, data, f_out, positions):
-        seen.append((self, np.array(u_new), np.array(u_old),
-                     {k: np.array(v) for k, v in state.items()}, ctx, bool(tangent),
-                     np.array(positions), int(np.max(positions)) + 1, len(f_out)))
-        return real(self, u_new, u_old, state, ctx, tangent, data, f_out, positions)
-
-    with tempfile.TemporaryDirectory() as tmp:
-        if what.endswith(".dat"):
-            deck = Path(what).resolve()
-        else:
-            nx, ny = (int(n) for n in what.split("x"))
-            deck = Path(tmp) / "press_slide.dat"
-            deck.write_text(press_slide_deck(nx, ny))
-        model = load_deck(deck)
-        for step in model.steps:
-            step.controls["KERNEL"] = "NUMBA"
-        SolidElement.compute_into = kept
-        try:
-            run(model, Path(tmp) / "out", writers=default_writers(Path(tmp) / "out", model,
-                                                                  names=("STATUS",)),
-                deck_path=deck)
-        finally:
-            SolidElement.compute_into = real
-    pick = np.unique(np.linspace(0, len(seen) - 1, min(calls, len(seen))).round().astype(int))
-    return [seen[i] for i in pick], len(seen)
+    def inputs(group, u_new, u_old, state, ctx, tangent, data, f_out, positions):
+        return (group, np.array(u_new), np.array(u_old),
+                {k: np.array(v) for k, v in state.items()}, ctx, bool(tangent),
+                np.array(positions), int(np.max(positions)) + 1, len(f_out))
+    return record_calls(what, calls, "compute_into", "NUMBA", inputs)
 
 
 def replay(call, tangent: bool, fresh_start: bool = True):

@@ -30,9 +30,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
-def record(what: str, calls: int):
-    """The inputs of ``calls`` of the solid groups' compute calls in the run of ``what``
-    (``NXxNY`` or a deck file), evenly spread, and how many the run made."""
+def record_calls(what: str, calls: int, method: str, kernel: str, inputs):
+    """The inputs of ``calls`` of ``SolidElement.<method>``'s calls in the run of ``what``
+    (``NXxNY`` or a deck file) with ``KERNEL=kernel``, evenly spread, and how many the run
+    made; ``inputs(group, *args)`` is what a call keeps (copies of its arrays).  Shared with
+    ``tools/kernel_calls.py``."""
     from bench import press_slide_deck
 
     from lagamine_py.deck import load_deck
@@ -41,12 +43,11 @@ def record(what: str, calls: int):
     from lagamine_py.solver import run
 
     seen = []
-    real = SolidElement.compute
+    real = getattr(SolidElement, method)
 
-    def kept(self, u_new, u_old, state, ctx, tangent=True):
-        seen.append((self, np.array(u_new), np.array(u_old),
-                     {k: np.array(v) for k, v in state.items()}, ctx, tangent))
-        return real(self, u_new, u_old, state, ctx, tangent)
+    def kept(self, *args, **kwargs):
+        seen.append(inputs(self, *args, **kwargs))
+        return real(self, *args, **kwargs)
 
     with tempfile.TemporaryDirectory() as tmp:
         if what.endswith(".dat"):
@@ -57,16 +58,25 @@ def record(what: str, calls: int):
             deck.write_text(press_slide_deck(nx, ny))
         model = load_deck(deck)
         for step in model.steps:
-            step.controls["KERNEL"] = "NUMPY"
-        SolidElement.compute = kept
+            step.controls["KERNEL"] = kernel
+        setattr(SolidElement, method, kept)
         try:
             run(model, Path(tmp) / "out", writers=default_writers(Path(tmp) / "out", model,
                                                                   names=("STATUS",)),
                 deck_path=deck)
         finally:
-            SolidElement.compute = real
+            setattr(SolidElement, method, real)
     pick = np.unique(np.linspace(0, len(seen) - 1, min(calls, len(seen))).round().astype(int))
     return [seen[i] for i in pick], len(seen)
+
+
+def record(what: str, calls: int):
+    """The inputs of ``calls`` of the NumPy solid groups' compute calls in the run of ``what``
+    (``NXxNY`` or a deck file), evenly spread, and how many the run made."""
+    def inputs(group, u_new, u_old, state, ctx, tangent=True):
+        return (group, np.array(u_new), np.array(u_old),
+                {k: np.array(v) for k, v in state.items()}, ctx, tangent)
+    return record_calls(what, calls, "compute", "NUMPY", inputs)
 
 
 def answers(calls, prefix: str = "") -> dict[str, np.ndarray]:
