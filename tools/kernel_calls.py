@@ -28,7 +28,6 @@ Timings only, never asserted in tests; what the kernel computes is held by the t
 from __future__ import annotations
 
 import argparse
-import pickle
 import sys
 import time
 from pathlib import Path
@@ -36,13 +35,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from solid_calls import collect_runs, groups_of, record_calls, save_or_check  # noqa: E402  (tools/ on the path)
 
 
 def record(what: str, calls: int):
     """The inputs of ``calls`` of the fused solid groups' calls in the run of ``what``
     (``NXxNY`` or a deck file), evenly spread, and how many the run made."""
-    from solid_calls import record_calls
-
     def inputs(group, u_new, u_old, state, ctx, tangent, data, f_out, positions):
         return (group, np.array(u_new), np.array(u_old),
                 {k: np.array(v) for k, v in state.items()}, ctx, bool(tangent),
@@ -133,15 +131,6 @@ def plastic_block(size: str, element: str, repeat: int) -> str:
             f"with tangent {out[True]:.3f} us per element, forces only {out[False]:.3f}")
 
 
-def _bits(a: np.ndarray) -> np.ndarray:
-    """The bytes of ``a``: -0.0 is not 0.0, a NaN's payload counts (np.array_equal would not)."""
-    return np.ascontiguousarray(a).view(np.uint8) if a.dtype.kind in "fcbiu" else a
-
-
-def _groups(calls):
-    return {id(c[0]): c[0] for c in calls}.values()
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("what", nargs="*", help="NXxNY (press-then-slide) or deck files")
@@ -155,41 +144,13 @@ def main(argv=None) -> int:
     if a.plastic:
         print(plastic_block(a.plastic, a.element, a.repeat))
         return 0
-    runs, got, saved = {}, {}, {}
-    if a.check:        # the calls the answers were saved from: a changed result moves a run
-        with open(a.check + ".calls.pickle", "rb") as fh:
-            saved = pickle.load(fh)
-    for what in a.what:
-        if what in saved:
-            calls, total = saved[what]
-        else:
-            calls, total = record(what, a.calls)
-        for g in _groups(calls):
-            g._cache, g._views = {}, None                            # as built
-        runs[what] = calls, total
-        ne = sum(len(g.conn) for g in _groups(calls))
+    runs, got = collect_runs(a.what, a.check, record, a.calls, reset_recorded=True), {}
+    for what, (calls, total) in runs.items():
+        ne = sum(len(g.conn) for g in groups_of(calls))
         print(f"{what}: {ne} solid elements, {len(calls)} of the run's {total} fused "
               f"evaluations replayed")
         got.update(answers(calls, f"{what}/"))
-    code = 0
-    if a.save:
-        np.savez(a.save, **got)
-        for calls, _ in runs.values():
-            for g in _groups(calls):
-                g._cache, g._views = {}, None
-        with open(a.save + ".calls.pickle", "wb") as fh:
-            pickle.dump({w: (c, t) for w, (c, t) in runs.items()}, fh)
-        print(f"answers saved to {a.save} ({len(got)} arrays)")
-    if a.check:
-        ref = {k: v for k, v in np.load(a.check).items()          # the runs asked for only
-               if any(k.startswith(w + "/") for w in runs)}
-        differ = sorted(set(ref) ^ set(got))
-        differ += [k for k in ref if k in got and not (
-            ref[k].shape == got[k].shape and ref[k].dtype == got[k].dtype
-            and np.array_equal(_bits(ref[k]), _bits(got[k])))]
-        print(f"bit for bit against {a.check}: "
-              + ("identical" if not differ else f"{len(differ)} arrays differ: {differ[:8]}"))
-        code = 1 if differ else 0
+    code = save_or_check(a.save, a.check, runs, got)
     for what, (calls, _) in runs.items():
         elements = np.mean([len(c[0].conn) for c in calls])
         print(what)

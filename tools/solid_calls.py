@@ -165,6 +165,57 @@ def _bits(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a).view(np.uint8) if a.dtype.kind in "fcbiu" else a
 
 
+def groups_of(calls):
+    """The distinct groups of recorded calls (each call's first item)."""
+    return {id(c[0]): c[0] for c in calls}.values()
+
+
+def collect_runs(whats, check: str | None, record, calls: int, reset_recorded: bool = False):
+    """``{what: (calls, total)}``: the calls saved beside ``check`` (a changed result moves a
+    run's later calls, so the check replays the saved ones) or, for a run not saved, ``record``'s;
+    a saved run's groups are reset as built (and a recorded run's with ``reset_recorded``)."""
+    saved = {}
+    if check:
+        with open(check + ".calls.pickle", "rb") as fh:
+            saved = pickle.load(fh)
+    runs = {}
+    for what in whats:
+        found, (run_calls, total) = what in saved, saved.get(what) or record(what, calls)
+        if found or reset_recorded:
+            for g in groups_of(run_calls):
+                g._cache, g._views = {}, None                        # as built
+        runs[what] = run_calls, total
+    return runs
+
+
+def save_or_check(save: str | None, check: str | None, runs: dict, got: dict,
+                  describe=lambda differ: "") -> int:
+    """``save``: the answers ``got`` to ``save`` (npz) and the runs' calls (their groups reset as
+    built) to ``save.calls.pickle``; ``check``: ``got`` against the answers saved in ``check`` for
+    the runs asked, bit for bit (``describe(differ)`` adds to the verdict).  1 when any differs.
+    Shared with ``tools/kernel_calls.py``."""
+    if save:
+        np.savez(save, **got)
+        for calls, _ in runs.values():
+            for g in groups_of(calls):
+                g._cache, g._views = {}, None
+        with open(save + ".calls.pickle", "wb") as fh:
+            pickle.dump({w: (c, t) for w, (c, t) in runs.items()}, fh)
+        print(f"answers saved to {save} ({len(got)} arrays)")
+    if not check:
+        return 0
+    ref = {k: v for k, v in np.load(check).items()               # the runs asked for only
+           if any(k.startswith(w + "/") for w in runs)}
+    differ = sorted(set(ref) ^ set(got))
+    differ += [k for k in ref if k in got and not (
+        ref[k].shape == got[k].shape and ref[k].dtype == got[k].dtype
+        and np.array_equal(_bits(ref[k]), _bits(got[k])))]
+    print(f"bit for bit against {check}: "
+          + ("identical" if not differ else f"{len(differ)} arrays differ: {differ[:8]}"
+             + describe(differ)))
+    return 1 if differ else 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("what", nargs="+", help="NXxNY (press-then-slide) or deck files")
@@ -174,43 +225,14 @@ def main(argv=None) -> int:
     ap.add_argument("--check")
     ap.add_argument("--profile", action="store_true")
     a = ap.parse_args(argv)
-    runs, got = {}, {}
-    saved = {}
-    if a.check:        # the calls the answers were saved from: a changed result moves a run
-        with open(a.check + ".calls.pickle", "rb") as fh:
-            saved = pickle.load(fh)
-    for what in a.what:
-        if what in saved:
-            calls, total = saved[what]
-            for g in {id(c[0]): c[0] for c in calls}.values():
-                g._cache, g._views = {}, None                        # as built
-        else:
-            calls, total = record(what, a.calls)
-        runs[what] = calls, total
-        ne = sum(len(g.conn) for g in {id(c[0]): c[0] for c in calls}.values())
+    runs, got = collect_runs(a.what, a.check, record, a.calls), {}
+    for what, (calls, total) in runs.items():
+        ne = sum(len(g.conn) for g in groups_of(calls))
         print(f"{what}: {ne} solid elements, {len(calls)} of the run's {total} solid "
               f"evaluations replayed")
         got.update(answers(calls, f"{what}/"))
-    code = 0
-    if a.save:
-        np.savez(a.save, **got)
-        for calls, _ in runs.values():
-            for g in {id(c[0]): c[0] for c in calls}.values():
-                g._cache, g._views = {}, None
-        with open(a.save + ".calls.pickle", "wb") as fh:
-            pickle.dump({w: (c, t) for w, (c, t) in runs.items()}, fh)
-        print(f"answers saved to {a.save} ({len(got)} arrays)")
-    if a.check:
-        ref = {k: v for k, v in np.load(a.check).items()     # the runs asked for only
-               if k.split("/")[0] in runs or "/".join(k.split("/")[:2]) in runs}
-        differ = sorted(set(ref) ^ set(got))
-        differ += [k for k in ref if k in got and not (
-            ref[k].shape == got[k].shape and ref[k].dtype == got[k].dtype
-            and np.array_equal(_bits(ref[k]), _bits(got[k])))]
-        print(f"bit for bit against {a.check}: "
-              + ("identical" if not differ else
-                 f"{len(differ)} arrays differ: {differ[:8]}; outputs: {_kinds(differ)}"))
-        code = 1 if differ else 0
+    code = save_or_check(a.save, a.check, runs, got,
+                         lambda differ: f"; outputs: {_kinds(differ)}")
     from lagamine_py.elements.base import LATER
     for what, (calls, _) in runs.items():
         points = np.mean([c[0].conn.shape[0] * c[0].nq for c in calls])
