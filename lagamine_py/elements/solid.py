@@ -105,7 +105,7 @@ def _log_b_value(b2: np.ndarray):
     (:func:`_log_b_derivative`), so that it can be taken later from the same numbers."""
     lam, V = sym_eig2(b2)
     v0, v1 = V[..., :, 0], V[..., :, 1]
-    P0, P1 = _projector(v0), _projector(v1)
+    P0, P1 = _outer2(v0, v0), _outer2(v1, v1)
     half_log = 0.5 * np.log(lam)
     # E = l0 P0 + l1 P1 entry by entry (the same products and sums as the broadcast form,
     # which ran an inner loop of two per point)
@@ -119,12 +119,13 @@ def _log_b_value(b2: np.ndarray):
     return E, (lam, v0, v1, P0, P1)
 
 
-def _projector(v: np.ndarray) -> np.ndarray:
-    """``v v^T`` (..., 2, 2) of vectors (..., 2), entry by entry."""
-    P = np.empty(v.shape + (2,))
+def _outer2(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``u v^T`` (..., 2, 2) of vectors (..., 2), entry by entry (a broadcast product runs an
+    inner loop of two per point)."""
+    P = np.empty(u.shape + (2,))
     for i in (0, 1):
         for j in (0, 1):
-            np.multiply(v[..., i], v[..., j], out=P[..., i, j])
+            np.multiply(u[..., i], v[..., j], out=P[..., i, j])
     return P
 
 
@@ -135,10 +136,7 @@ def _log_b_derivative(lam, v0, v1, P0, P1, rows=None):
     The second and third terms are formed in one buffer."""
     m = 0.5 * (lam[..., 0] + lam[..., 1])
     ratio = _atanh_over_x(0.5 * (lam[..., 0] - lam[..., 1]) / m)
-    p = np.empty_like(P0)                                 # v0_i v1_j, then S = p + p^T
-    for i in (0, 1):
-        for j in (0, 1):
-            np.multiply(v0[..., i], v1[..., j], out=p[..., i, j])
+    p = _outer2(v0, v1)                                   # v0_i v1_j, then S = p + p^T
     S = p + np.swapaxes(p, -1, -2)
     C = _outer22(P0, 0.5 / lam[..., 0], rows)
     term = np.empty_like(C)
