@@ -118,6 +118,20 @@ def scan_entry_points(prefix: str = "lagamine_py.", path: list[str] | None = Non
     return found
 
 
+def installed_entry_points(path: list[str] | None = None) -> list[EntryPoint]:
+    """The entry points of the ``lagamine_py.*`` groups installed on ``path`` (default
+    ``sys.path``): :func:`scan_entry_points`, or ``importlib.metadata``'s for every plugin
+    kind when a zipped distribution is on the path (``origin`` then given, ``path`` not
+    applied).  Shared by :class:`Registry` and the sweep's program digest."""
+    every = scan_entry_points(path=path)
+    if every is None:
+        from importlib import metadata
+        every = [EntryPoint(ep.name, ep.value, ep.group,
+                            origin=f"{ep.dist.name} {ep.dist.version}" if ep.dist else "")
+                 for k in KINDS for ep in metadata.entry_points(group=f"lagamine_py.{k}")]
+    return every
+
+
 def dist_origin(dist_dir: str) -> str:
     """``"<name> <version>"`` from a distribution's METADATA (or PKG-INFO) headers."""
     fields = {}
@@ -195,13 +209,7 @@ class Registry:
     def entry_points(self, kind: str) -> list:
         """The entry points of ``kind`` (read from the installed distributions once)."""
         if not self._eps:
-            # one scan of the installed distributions for every kind
-            every = scan_entry_points()
-            if every is None:                           # a zipped distribution on sys.path
-                from importlib import metadata
-                every = [EntryPoint(ep.name, ep.value, ep.group,
-                                    origin=f"{ep.dist.name} {ep.dist.version}" if ep.dist else "")
-                         for k in KINDS for ep in metadata.entry_points(group=f"lagamine_py.{k}")]
+            every = installed_entry_points()      # one scan of the distributions, every kind
             self._eps.update({k: [ep for ep in every if ep.group == f"lagamine_py.{k}"]
                               for k in KINDS})
         return self._eps[kind]

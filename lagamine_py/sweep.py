@@ -31,9 +31,9 @@ by more values) skips the points that ran to the end (status 0) or stopped on no
 (status 3) *with the same deck*, reusing their rows, so an interrupted sweep resumes where it
 stopped; a point run with another deck, with this deck before it (an included file, a
 parameter default) changed, or by another version of the program (:func:`program_digest`: the
-package's source, other packages' plugins, Python's, NumPy's and SciPy's versions), runs again, and the sweep says so.  Points with a deck error (2),
-a crash (1) or a signal are run again, on the view that their deck or installation has been
-fixed in between.  A point whose worker failed (an exception, a lost dask worker) is recorded
+package's source, other packages' plugins, Python's, NumPy's and SciPy's versions), runs again,
+and the sweep says so.  Points with a deck error (2), a crash (1) or a signal are run again,
+on the view that their deck or installation has been fixed in between.  A point whose worker failed (an exception, a lost dask worker) is recorded
 in sweep.csv with status 1 and the reason, and leaves no ``point.json``.
 
 The sweep holds a lock on ``DIR`` (a second sweep into it is refused, exit status 2).  Ctrl-C,
@@ -394,13 +394,9 @@ def plugin_sources(path: list[str] | None = None) -> list[tuple[str, bytes]]:
     cannot be found gives empty bytes (the run will say why)."""
     import importlib.util
     from . import registry
-    eps = registry.scan_entry_points(path=path)
-    if eps is None:                                     # a zipped distribution: importlib's view
-        from importlib import metadata
-        eps = [registry.EntryPoint(ep.name, ep.value, ep.group)
-               for k in registry.KINDS for ep in metadata.entry_points(group=f"lagamine_py.{k}")]
     out = []
-    for ep in sorted(eps, key=lambda e: (e.group, e.name, e.value)):
+    for ep in sorted(registry.installed_entry_points(path),
+                     key=lambda e: (e.group, e.name, e.value)):
         module = ep.value.split("[")[0].partition(":")[0].strip()
         if module.split(".")[0] == registry.BUILTIN:
             continue                                    # ours: in the package's own digest
