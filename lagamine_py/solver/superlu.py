@@ -75,13 +75,10 @@ def splu(A: sp.csc_matrix, permc_spec: str = "MMD_AT_PLUS_A"):
     n = A.shape[0]
     if A.shape != (n, n):
         raise ValueError(f"splu needs a square matrix, got {A.shape}")
-    # the arguments scipy.sparse.linalg.splu passes for splu(A, permc_spec=...)
-    options = dict(DiagPivotThresh=None, ColPerm=permc_spec, PanelSize=None, Relax=None)
-    if permc_spec == "NATURAL":
-        options["SymmetricMode"] = True
-    return module.gstrf(n, A.nnz, np.asarray(A.data, np.float64), A.indices.astype(np.intc, copy=False),
-                        A.indptr.astype(np.intc, copy=False), csc_construct_func=sp.csc_matrix,
-                        ilu=False, options=options)
+    # scipy.sparse.linalg.splu asks SymmetricMode with a NATURAL ordering
+    return _gstrf(n, np.asarray(A.data, np.float64), A.indices.astype(np.intc, copy=False),
+                  A.indptr.astype(np.intc, copy=False), permc_spec,
+                  symmetric_mode=permc_spec == "NATURAL")
 
 
 class CscParts(NamedTuple):
@@ -115,11 +112,14 @@ def u_diagonal(lu) -> np.ndarray:
 
 
 def _gstrf(n: int, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, permc_spec: str,
-           construct=sp.csc_matrix):
-    """scipy's ``gstrf`` on CSC arrays (indices of C int), with the options ``splu`` passes;
+           construct=sp.csc_matrix, symmetric_mode: bool = False):
+    """scipy's ``gstrf`` on CSC arrays (indices of C int), with the options
+    ``scipy.sparse.linalg.splu`` passes for ``permc_spec`` (and ``SymmetricMode`` if asked);
     ``construct(arrays, shape=)`` makes ``L`` and ``U`` at the first access to either."""
     module = superlu_module()
     options = dict(DiagPivotThresh=None, ColPerm=permc_spec, PanelSize=None, Relax=None)
+    if symmetric_mode:
+        options["SymmetricMode"] = True
     return module.gstrf(n, data.size, data, indices, indptr, csc_construct_func=construct,
                         ilu=False, options=options)
 
