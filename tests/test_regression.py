@@ -74,30 +74,19 @@ def test_deck_matches_reference(deck, deck_run):
     assert report.ok, f"{deck.name} differs from {ref}:\n{report.text()}"
 
 
-#: the round-off of other processors, made on this one: OpenBLAS's kernels for other processor
-#: classes, NumPy's AVX-512 loops switched off (NumPy 2's dispatch targets, those it has)
-OTHER_CPUS = {
-    "openblas-sandybridge": {"OPENBLAS_CORETYPE": "SandyBridge"},
-    "openblas-prescott": {"OPENBLAS_CORETYPE": "Prescott"},
-    "numpy-without-avx512": {"NPY_DISABLE_CPU_FEATURES": ("X86_V4", "AVX512_ICL", "AVX512_SPR")},
-}
+def _other_cpus():
+    """tools/other_cpus.py: its configurations of other processors' round-off and their
+    environments."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("other_cpus", ROOT / "tools" / "other_cpus.py")
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    return tool
 
 
-def _cpu_env(settings: dict) -> dict:
-    import os
-    env = dict(os.environ)
-    for key, value in settings.items():
-        if key == "NPY_DISABLE_CPU_FEATURES":
-            try:
-                from numpy._core._multiarray_umath import __cpu_dispatch__
-            except ImportError:
-                pytest.skip("this NumPy does not list its dispatch targets")
-            present = [v for v in value if v in __cpu_dispatch__]
-            if not present:
-                pytest.skip(f"this NumPy dispatches none of {value}")
-            value = " ".join(present)
-        env[key] = value
-    return env
+#: three of the tool's configurations: OpenBLAS's kernels of two other processor classes,
+#: NumPy's AVX-512 loops switched off
+OTHER_CPUS = ("sandybridge", "prescott", "numpy-no-avx512")
 
 
 @pytest.mark.parametrize("cpu", OTHER_CPUS)
@@ -108,15 +97,12 @@ def test_main_job_matches_its_reference_with_another_processors_round_off(cpu, t
     increment's growth the slide took other increments with NumPy's AVX-512 loops off or
     OpenBLAS's SandyBridge kernels (T mid-slide 0.8 % off: compare failed).  The stepper does not
     grow after a step's first increment (solver/stepper.py)."""
-    import subprocess
-    import sys
-    out = tmp_path / "out"
-    res = subprocess.run([sys.executable, "-m", "lagamine_py", "run",
-                          str(ROOT / "decks" / "press_slide.dat"), "-q", "-o", str(out)],
-                         capture_output=True, text=True, env=_cpu_env(OTHER_CPUS[cpu]), cwd=ROOT)
-    assert res.returncode == 0, res.stderr
-    report = compare_dirs(out, REFERENCE / "press_slide")
-    assert report.ok, report.text()
+    tool = _other_cpus()
+    env = tool.cpu_env(tool.CPUS[cpu])
+    if env is None:
+        pytest.skip(f"this NumPy dispatches none of {cpu}'s targets")
+    verdict = tool.run_one(ROOT / "decks" / "press_slide.dat", env, tmp_path / "out")
+    assert verdict.startswith("PASS"), verdict        # the run in a process of its own
 
 
 def _tool():
