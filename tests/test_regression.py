@@ -74,16 +74,6 @@ def test_deck_matches_reference(deck, deck_run):
     assert report.ok, f"{deck.name} differs from {ref}:\n{report.text()}"
 
 
-def _other_cpus():
-    """tools/other_cpus.py: its configurations of other processors' round-off and their
-    environments."""
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("other_cpus", ROOT / "tools" / "other_cpus.py")
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
-    return tool
-
-
 #: three of the tool's configurations: OpenBLAS's kernels of two other processor classes,
 #: NumPy's AVX-512 loops switched off
 OTHER_CPUS = ("sandybridge", "prescott", "numpy-no-avx512")
@@ -97,7 +87,7 @@ def test_main_job_matches_its_reference_with_another_processors_round_off(cpu, t
     increment's growth the slide took other increments with NumPy's AVX-512 loops off or
     OpenBLAS's SandyBridge kernels (T mid-slide 0.8 % off: compare failed).  The stepper does not
     grow after a step's first increment (solver/stepper.py)."""
-    tool = _other_cpus()
+    tool = _tool("other_cpus")            # its configurations, environments and one run
     env = tool.cpu_env(tool.CPUS[cpu])
     if env is None:
         pytest.skip(f"this NumPy dispatches none of {cpu}'s targets")
@@ -105,9 +95,10 @@ def test_main_job_matches_its_reference_with_another_processors_round_off(cpu, t
     assert verdict.startswith("PASS"), verdict        # the run in a process of its own
 
 
-def _tool():
+def _tool(name: str = "make_references"):
+    """The module ``tools/<name>.py``."""
     import importlib.util
-    spec = importlib.util.spec_from_file_location("make_references", ROOT / "tools" / "make_references.py")
+    spec = importlib.util.spec_from_file_location(name, ROOT / "tools" / f"{name}.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
