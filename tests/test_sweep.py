@@ -441,8 +441,11 @@ def test_a_stopped_sweep_stops_its_runs_and_keeps_its_finished_points(tmp_path, 
     process left behind), the point that finished is in sweep.csv, exit status 130."""
     command, deck = stand_in
     out = tmp_path / "sweep"
+    # Ctrl-C's default restored in the child: a pytest started in the background (`nohup ...
+    # &`) ignores SIGINT, and Python keeps an inherited SIG_IGN, so the sweep would never see it
     proc = subprocess.Popen([sys.executable, "-c", SWEEP, *command, str(deck), str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     slow = [out / f"SLEEP={s}" / "pid.txt" for s in (60, 61)]
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and not all(p.exists() for p in slow):
