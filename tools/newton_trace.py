@@ -143,6 +143,22 @@ def worst_contact_nodes(problem, R, free, error, starts, firsts, ends, scale, co
     return "\n".join(lines)
 
 
+def force_changes(problem, first, converged, free: np.ndarray, scale: float) -> str:
+    """How far each kind of group's force at the first iterate is from its converged one, over
+    the free DOFs, relative to F: which groups' forces the first iterate's residual is made of
+    (the converged residual is ~0, so the residual is the sum of these changes).  Groups
+    computed by a fused kernel (no force blocks in their result) are left out."""
+    change: dict[str, np.ndarray] = {}
+    for k, (a, b) in enumerate(zip(first, converged)):
+        if a.f is None or b.f is None:
+            continue
+        kind = problem.kinds[k]
+        d = problem.pattern.group_vector(k, np.asarray(a.f) - np.asarray(b.f))
+        change[kind] = change.get(kind, 0.0) + d
+    parts = ", ".join(f"{kind} {np.linalg.norm(d[free]) / scale:.2e}" for kind, d in change.items())
+    return f"    force change first iterate -> converged, |df|/F by kind: {parts}"
+
+
 def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sys.stdout,
           writers=(), first: bool = False, first_nodes: int = 0):
     """Run ``model`` with the trace on; returns the run's :class:`Outcome` (None when stopped
@@ -173,6 +189,9 @@ def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sy
                 for s_ in (conv.states[i] for i in contact)]
         print(first_report(problem, problem.model, R, free.free, free.constrained,
                            u0 - conv.u, codes, ends, scale), file=out)
+        print(force_changes(problem, ev.results, problem.evaluate(conv.u, u_old, states, ctx,
+                                                                  False).results,
+                            free.free, scale), file=out)
         if first_nodes:
             starts = [stabilisation.state_codes(s_["status"], s_["tau"], s_["p"])
                       for s_ in (states[i] for i in contact)]
