@@ -232,8 +232,8 @@ CONTROL_PARAMS: tuple[Param, ...] = (
     Param("KERNEL", str, "AUTO", choices=kernels.SETTINGS,
           doc="numba kernels (NUMBA, needs the fast extra), NumPy (NUMPY), or numba from "
               f"{kernels.AUTO_NUMBA_ELEMENTS} solid elements when installed (AUTO)"),
-    Param("EXTRAPOLATION", str, "LINEAR", choices=("LINEAR", "NONE"),
-          doc="first iterate of an increment: the last increment of the step, scaled, its slip fronts moved on at their speed (LINEAR), or none"),
+    Param("EXTRAPOLATION", str, "LINEAR", choices=("LINEAR", "PARABOLIC", "NONE"),
+          doc="first iterate of an increment: the last increment of the step, scaled, its slip fronts moved on at their speed (LINEAR); the quadratic in time through the step's last two increments, the fronts as LINEAR (PARABOLIC; LINEAR after the step's first increment); or none"),
     Param("FLIPFLOP", int, 4, (1, 100), doc="contact status switches or slip reversals of a point before it is frozen"),
     Param("SDI", bool, True,
           doc="a residual growing while contact points change state is not a divergence (severe discontinuity iterations) unless it grows over 6 iterations running; MAXIT still bounds the increment"),

@@ -54,3 +54,42 @@ def test_trace_prints_one_line_per_solve_and_the_switches(tmp_path):
     first = re.search(r"switched (\d+): (.*)", text)
     n, listed = int(first.group(1)), first.group(2).replace(" ...", "").split()
     assert n > 0 and len(listed) == min(n, 12)
+
+
+def test_first_report_is_newtons_first_residual_split_by_region(tmp_path):
+    """``--first``: after each converged increment the residual of its first iterate, which must
+    be Newton's own iteration-0 residual of that increment (its log line, an independent
+    computation) for the increments that impose nothing (the press: no constrained DOF); the
+    region shares add up to 100 %; the residual is the sum of the groups' force changes to the
+    converged state (~0 residual there), so it is at most the sum of their norms."""
+    model = load_deck(ROOT / "decks" / "press_slide.dat")
+    out = io.StringIO()
+    assert newton_trace.trace(model, tmp_path / "out", increments=3, out=out, first=True) is None
+    text = out.getvalue()
+    newton0 = [float(v) for v in re.findall(r"iter +0 +\|R\|/F = (\S+)", text)]
+    reports = re.findall(r"first iterate \|R\|/F (\S+): \|R\|\^2 contact (\d+) % \([^)]*\); "
+                         r"edge (\d+) %; body (\d+) %", text)
+    changes = re.findall(r"\|df\|/F by kind: (.*)", text)
+    assert len(newton0) == len(reports) == len(changes) == 3
+    for r0, (rel, *shares), change in zip(newton0, reports, changes):
+        assert float(rel) == np.float64(r0) or abs(float(rel) / r0 - 1.0) < 1e-3
+        assert abs(sum(int(s) for s in shares) - 100) <= 2          # each share rounded
+        total = sum(float(v) for v in re.findall(r"\w+ (\S+?)(?:,|$)", change))
+        assert float(rel) <= total * (1 + 1e-3) + 1e-8
+    assert float(reports[1][0]) < 1e-2 < float(reports[0][0])     # extrapolated vs from rest
+
+
+def test_regions_of_the_main_job():
+    """The contact nodes are the bottom edge's (y = 0, closed form from the mesh), the imposed
+    edge's neighbours those of the elements touching x = 40 off the bottom edge."""
+    from lagamine_py.solver.problem import build_problem
+    model = load_deck(ROOT / "decks" / "press_slide.dat")
+    problem = build_problem(model)
+    x = model.coords
+    right = np.flatnonzero(np.isclose(x[:, 0], 40.0))
+    constrained = 2 * right                       # BLOCK_RIGHT, DOF 1
+    zones = newton_trace.regions(problem, constrained)
+    assert np.array_equal(zones["contact"], np.isclose(x[:, 1], 0.0))
+    # the right column of Q8 elements spans x = 37.5 .. 40 (h = 2.5)
+    assert np.array_equal(zones["edge"], (x[:, 0] >= 37.5 - 1e-9) & ~np.isclose(x[:, 1], 0.0))
+    assert np.array_equal(zones["body"], ~(zones["contact"] | zones["edge"]))

@@ -3,13 +3,15 @@
     python tools/newton_trace.py 40 20                     # press-then-slide at 40 x 20 (bench.py's deck)
     python tools/newton_trace.py --deck decks/stick_slip.dat --controls FLIPFLOP=2
     python tools/newton_trace.py 40 20 --tail 8 --increments 6
+    python tools/newton_trace.py 40 20 --first --controls EXTRAPOLATION=PARABOLIC
 
 Prints the solver's per-iteration log (``|R|/F``, the energy, the reviews of frozen points, the
 cut-backs) and, after each solve, the contact points whose state (open ``o``, stick ``k``, slip
 with tau > 0 ``+``, slip with tau < 0 ``-``: :func:`lagamine_py.solver.stabilisation.state_codes`)
 changed between the two last iterates, as ``<point><from><to>``.  ``--tail N`` adds the state
 and ``tau / p`` of the last N points of each group after every solve (press-then-slide: the
-points next to the pushed corner).  What ``docs/performance.md`` ("Newton solves per increment")
+points next to the pushed corner).  ``--first`` adds, after each converged increment, where
+its first iterate's residual sat (:func:`first_report`).  What ``docs/performance.md`` ("Newton solves per increment")
 reads its traces from; the counts do not depend on the machine's load.
 
 The trace wraps :meth:`FlipFlop.context <lagamine_py.solver.stabilisation.FlipFlop.context>`
@@ -47,16 +49,155 @@ def tail(code: np.ndarray, tau: np.ndarray, p: np.ndarray, n: int) -> str:
     return " ".join(f"{CODES[int(c)]}{r:+.3f}" for c, r in zip(code[-n:], ratio[-n:]))
 
 
+def regions(problem, constrained: np.ndarray) -> dict[str, np.ndarray]:
+    """(n,) bool masks of the nodes the first-iterate report splits the residual by: the
+    contact surfaces' nodes (``contact``), the nodes sharing a solid element with a node of
+    a constrained DOF and on no contact surface (``edge``: the imposed edge's neighbours and
+    itself), the rest (``body``)."""
+    from lagamine_py.solver.problem import CONTACT, SOLID
+    n = problem.nodal // 2 if problem.nodal >= 0 else problem.ndof // 2
+    contact = np.zeros(n, bool)
+    for k in problem.indices(CONTACT):
+        contact[np.asarray(problem.groups[k].face_nodes).ravel()] = True
+    fixed = np.zeros(n, bool)
+    c = np.asarray(constrained, np.int64)
+    fixed[c[c < 2 * n] // 2] = True
+    edge = np.zeros(n, bool)
+    for k in problem.indices(SOLID):
+        conn = np.asarray(problem.groups[k].conn, np.int64)
+        edge[conn[fixed[conn].any(axis=1)].ravel()] = True
+    edge &= ~contact
+    return {"contact": contact, "edge": edge, "body": ~(contact | edge)}
+
+
+def contact_node_zones(problem, codes_end: list[np.ndarray], n: int) -> dict[str, np.ndarray]:
+    """(n,) bool masks of the contact nodes by the converged states of the points of their faces
+    at the end of the increment: all sticking (``stick``), all slipping (``slip``), some of
+    each or open (``front``)."""
+    from lagamine_py.core.status import STICK
+    from lagamine_py.solver.problem import CONTACT
+    sticks, others = np.zeros(n, bool), np.zeros(n, bool)
+    for k, code in zip(problem.indices(CONTACT), codes_end):
+        g = problem.groups[k]
+        per_face = np.asarray(code).reshape(g.nf, g.nq)
+        face_stick = (per_face == STICK).any(axis=1)
+        face_other = (per_face != STICK).any(axis=1)
+        for flag, mask in ((face_stick, sticks), (face_other, others)):
+            mask[np.asarray(g.face_nodes)[flag].ravel()] = True
+    return {"stick": sticks & ~others, "slip": others & ~sticks, "front": sticks & others}
+
+
+def first_report(problem, model, R: np.ndarray, free: np.ndarray, constrained: np.ndarray,
+                 error: np.ndarray, codes_start: list, codes_end: list, scale: float) -> str:
+    """One line: the first iterate's |R|/F and where |R|^2 sits (shares by region, the contact
+    nodes split by their converged states, :func:`contact_node_zones`), the node of the largest
+    residual, and the prediction's error ``u_start - u_converged`` (its largest by region)
+    and the contact points whose state at the first iterate is not their converged one."""
+    n = problem.nodal // 2 if problem.nodal >= 0 else problem.ndof // 2
+    Rn = np.zeros(problem.ndof)
+    Rn[free] = R[free]
+    r2 = (Rn[:2 * n].reshape(n, 2) ** 2).sum(axis=1)
+    e = np.abs(error[:2 * n].reshape(n, 2)).max(axis=1)
+    total = max(float(r2.sum()), 1e-300)
+    zones = regions(problem, constrained)
+    parts = []
+    for name, mask in zones.items():
+        if name == "contact":
+            sub = contact_node_zones(problem, codes_end, n)
+            inner = ", ".join(f"{z} {100 * r2[mask & m].sum() / total:.0f}"
+                              for z, m in sub.items() if (mask & m).any())
+            parts.append(f"{name} {100 * r2[mask].sum() / total:.0f} % ({inner})")
+        else:
+            parts.append(f"{name} {100 * r2[mask].sum() / total:.0f} %")
+    worst = int(np.argmax(r2))
+    x = model.coords[worst]
+    errs = " ".join(f"{name} {e[mask].max():.2e}" for name, mask in zones.items() if mask.any())
+    wrong = sum(int(np.sum(a != b)) for a, b in zip(codes_start, codes_end))
+    return (f"    first iterate |R|/F {np.sqrt(total) / scale:.3e}: |R|^2 {'; '.join(parts)}; "
+            f"largest at node {worst} ({x[0]:.4g}, {x[1]:.4g}); |u0 - u| max {errs}; "
+            f"contact states not the converged ones: {wrong}")
+
+
+def worst_contact_nodes(problem, R, free, error, starts, firsts, ends, scale, count) -> str:
+    """The ``count`` contact nodes of the largest first-iterate residual, one line each: the
+    node, x, R/F (x, y), the prediction's error (x, y), and the states (``o k + -``) of the
+    points of its faces at the increment's start, at the first iterate and converged."""
+    from lagamine_py.solver.problem import CONTACT
+    n = problem.nodal // 2 if problem.nodal >= 0 else problem.ndof // 2
+    Rn = np.zeros(problem.ndof)
+    Rn[free] = R[free]
+    R2, e2 = Rn[:2 * n].reshape(n, 2), error[:2 * n].reshape(n, 2)
+    lines = []
+    for k, a, b, c in zip(problem.indices(CONTACT), starts, firsts, ends):
+        g = problem.groups[k]
+        nodes = np.unique(np.asarray(g.face_nodes))
+        r = (R2[nodes] ** 2).sum(axis=1)
+        for node in nodes[np.argsort(r)[::-1][:count]]:
+            faces = np.flatnonzero((np.asarray(g.face_nodes) == node).any(axis=1))
+            pts = (faces[:, None] * g.nq + np.arange(g.nq)).ravel()
+            st = "/".join("".join(CODES[int(v[i])] for i in pts) for v in (a, b, c))
+            x = problem.model.coords[node]
+            lines.append(f"      node {node} x {x[0]:8.4g}: R/F ({R2[node, 0] / scale:+.2e}, "
+                         f"{R2[node, 1] / scale:+.2e}) error ({e2[node, 0]:+.2e}, "
+                         f"{e2[node, 1]:+.2e}) states {st}")
+    return "\n".join(lines)
+
+
+def force_changes(problem, first, converged, free: np.ndarray, scale: float) -> str:
+    """How far each kind of group's force at the first iterate is from its converged one, over
+    the free DOFs, relative to F: which groups' forces the first iterate's residual is made of
+    (the converged residual is ~0, so the residual is the sum of these changes).  Groups
+    computed by a fused kernel (no force blocks in their result) are left out."""
+    change: dict[str, np.ndarray] = {}
+    for k, (a, b) in enumerate(zip(first, converged)):
+        if a.f is None or b.f is None:
+            continue
+        kind = problem.kinds[k]
+        d = problem.pattern.group_vector(k, np.asarray(a.f) - np.asarray(b.f))
+        change[kind] = change.get(kind, 0.0) + d
+    parts = ", ".join(f"{kind} {np.linalg.norm(d[free]) / scale:.2e}" for kind, d in change.items())
+    return f"    force change first iterate -> converged, |df|/F by kind: {parts}"
+
+
 def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sys.stdout,
-          writers=()):
+          writers=(), first: bool = False, first_nodes: int = 0):
     """Run ``model`` with the trace on; returns the run's :class:`Outcome` (None when stopped
     after ``increments`` converged increments).  ``writers``: more writers to hand the run to
-    (they see every increment before the trace stops)."""
+    (they see every increment before the trace stops).  ``first``: after each converged
+    increment, :func:`first_report` of its first iterate (an extra evaluation per attempt)."""
     from lagamine_py.output import Writer, default_writers
     from lagamine_py.solver import stabilisation
     from lagamine_py.solver import steps as steps_mod
+    from lagamine_py.solver.problem import CONTACT
 
     inner = stabilisation.FlipFlop.context
+    solve = steps_mod.solve_increment
+
+    def solve_reported(problem, solver, free, u_old, states, ctx, u_c, f_ext, settings, **k):
+        conv = solve(problem, solver, free, u_old, states, ctx, u_c, f_ext, settings, **k)
+        u0 = np.array(u_old if k.get("u_start") is None else k["u_start"], float)
+        u0[free.constrained] = u_c            # as Newton's first iteration imposes them
+        ctx0 = k["observers"][0].start(ctx) if k.get("observers") else ctx
+        ev = problem.evaluate(u0, u_old, states, ctx0, False)
+        R = ev.f_int - f_ext
+        scale = max(float(np.linalg.norm(f_ext)), float(np.linalg.norm(R[free.constrained])),
+                    ev.scale, 1e-300)
+        contact = problem.indices(CONTACT)
+        codes = [stabilisation.state_codes(s_["status"], s_["tau"], s_["p"])
+                 for s_ in (ev.states[i] for i in contact)]
+        ends = [stabilisation.state_codes(s_["status"], s_["tau"], s_["p"])
+                for s_ in (conv.states[i] for i in contact)]
+        print(first_report(problem, problem.model, R, free.free, free.constrained,
+                           u0 - conv.u, codes, ends, scale), file=out)
+        print(force_changes(problem, ev.results, problem.evaluate(conv.u, u_old, states, ctx,
+                                                                  False).results,
+                            free.free, scale), file=out)
+        if first_nodes:
+            starts = [stabilisation.state_codes(s_["status"], s_["tau"], s_["p"])
+                      for s_ in (states[i] for i in contact)]
+            print(worst_contact_nodes(problem, R, free.free, u0 - conv.u, starts, codes, ends,
+                                      scale, first_nodes), file=out)
+        return conv
 
     def context(self, ctx, states):
         for k, _, code in self._states(states):
@@ -88,6 +229,8 @@ def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sy
     solver_log.addHandler(handler)
     solver_log.setLevel(logging.INFO)
     stabilisation.FlipFlop.context = context
+    if first or first_nodes:
+        steps_mod.solve_increment = solve_reported
     try:
         return steps_mod.run(model, outdir,
                              writers=default_writers(outdir, model) + list(writers) + [Counter()])
@@ -95,6 +238,7 @@ def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sy
         return None
     finally:
         stabilisation.FlipFlop.context = inner
+        steps_mod.solve_increment = solve
         solver_log.removeHandler(handler)
         solver_log.setLevel(level)
 
@@ -107,6 +251,10 @@ def main(argv=None) -> int:
                    help="*CONTROLS values set in every step")
     p.add_argument("--tail", type=int, default=0, help="state and tau/p of the last N points")
     p.add_argument("--increments", type=int, default=0, help="stop after N converged increments")
+    p.add_argument("--first", action="store_true",
+                   help="where each converged increment's first iterate's residual sat")
+    p.add_argument("--first-nodes", type=int, default=0,
+                   help="with --first: the N contact nodes of the largest first residual")
     args = p.parse_args(argv)
     from lagamine_py.deck import load_deck
     work = Path(tempfile.mkdtemp(prefix="newton_trace_"))
@@ -123,7 +271,8 @@ def main(argv=None) -> int:
     values = dict(kv.split("=", 1) for kv in args.controls)
     for step in model.steps:
         step.controls.update(values)
-    outcome = trace(model, work / "out", args.tail, args.increments)
+    outcome = trace(model, work / "out", args.tail, args.increments, first=args.first,
+                    first_nodes=args.first_nodes)
     if outcome is not None:
         print("\n".join(outcome.summary[:-1]))
     return 0 if outcome is None or outcome.status == 0 else int(outcome.status)

@@ -8,6 +8,10 @@ Two predictors, tried in this order (:func:`first_iterate`):
   elastic (stick) state of a zero increment, and the slip zone of the previous increment is
   rediscovered one front point per iteration (10-15 iterations an increment on fine meshes,
   cut-backs when the front oscillates);
+  **parabolic extrapolation** (``EXTRAPOLATION=PARABOLIC``, Abaqus' ``*STEP,
+  EXTRAPOLATION=PARABOLIC``): the quadratic in time through the converged displacements at the
+  end of the last two increments of the step and now, evaluated at the new time (increments of
+  any lengths); linear while only one increment of the step has converged;
 * **the foundations' translation**, at a step start (nothing to extrapolate) when every
   foundation moves by the same nonzero ``dc`` over the increment: every node translated by
   ``dc``.  Contact, solid and pressure forces are invariant under a common translation of body
@@ -33,13 +37,15 @@ __all__ = ["first_iterate", "extrapolated", "foundation_shift", "front_holds", "
 
 
 def first_iterate(u: np.ndarray, last, dt: float, mode: str, ctx,
-                  nodal: int | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+                  nodal: int | None = None,
+                  earlier=None) -> tuple[np.ndarray, np.ndarray | None]:
     """Newton's first iterate and its *predicted* part (the extrapolated displacement, whose
     energy the energy test counts; None when the start is the converged state or its rigid
     translation, which cost no energy).  ``nodal``: the number of nodal DOFs (two per node),
     which come first in ``u`` (default all; the rest, the rotations of reference nodes, are
-    not shifted)."""
-    ext = extrapolated(u, last, dt, mode)
+    not shifted).  ``last``, ``earlier``: the step's last converged increment and the one
+    before it, as (du, dt) (:func:`extrapolated`)."""
+    ext = extrapolated(u, last, dt, mode, earlier)
     if ext is not None:
         return ext, ext - u
     shift = foundation_shift(ctx, u.size if nodal is None else nodal)
@@ -48,13 +54,28 @@ def first_iterate(u: np.ndarray, last, dt: float, mode: str, ctx,
     return (u + shift if shift is not None else u.copy()), None
 
 
-def extrapolated(u: np.ndarray, last, dt: float, mode: str) -> np.ndarray | None:
-    """``u + (dt / dt_last) du_last`` (LINEAR), from the last converged increment
-    ``last = (du_last, dt_last)`` of the same step; None with NONE or at the start of a step."""
-    if mode != "LINEAR" or last is None or not last[1] > 0:
+def extrapolated(u: np.ndarray, last, dt: float, mode: str, earlier=None) -> np.ndarray | None:
+    """The displacement extrapolated to the end of an increment of ``dt``; None with NONE or at
+    the start of a step (``last`` None).
+
+    ``last = (du1, dt1)``: the last converged increment of the same step; ``earlier = (du2,
+    dt2)``: the one before it (None when ``last`` is the step's first).
+
+    * LINEAR: ``u + (dt / dt1) du1``;
+    * PARABOLIC: the quadratic through (-dt1 - dt2, u - du1 - du2), (-dt1, u - du1), (0, u) at
+      ``dt``, in Newton's form ``u + (dt / dt1) du1 + dt (dt + dt1) (s1 - s2) / (dt1 + dt2)``
+      with the slopes ``s1 = du1 / dt1``, ``s2 = du2 / dt2``: the linear prediction plus the
+      curvature of the last two increments; LINEAR when there is no ``earlier``.
+    """
+    if mode not in ("LINEAR", "PARABOLIC") or last is None or not last[1] > 0:
         return None
-    du, dt_last = last
-    return u + (dt / dt_last) * du
+    du1, dt1 = last
+    linear = u + (dt / dt1) * du1
+    if mode == "LINEAR" or earlier is None or not earlier[1] > 0:
+        return linear
+    du2, dt2 = earlier
+    # the second divided difference times dt (dt + dt1): zero on a straight path
+    return linear + (du1 / dt1 - du2 / dt2) * (dt * (dt + dt1) / (dt1 + dt2))
 
 
 def foundation_shift(ctx, ndof: int) -> np.ndarray | None:

@@ -341,13 +341,15 @@ class Controller:
         self.states = self.problem.set_step_laws(si, self.states)   # *CHANGE CONTACT LAW
         if resume is not None:
             loads, last, front = resume["loads"], resume["last"], resume["front"]
+            earlier = resume["earlier"]
             stepper = Stepper.start(step, controls, resume["t"], resume["dt"], resume["inc"])
         else:
             loads = step_loads(self.model, step, self.reached, self.u, self.reaction,
                                self.surfaces, self.foundations)
-            # the last converged increment of the step (displacement change, dt): the
-            # predictor of the next one (EXTRAPOLATION=LINEAR); none at a step start
-            last = front = None        # and how its slip fronts moved (front_holds)
+            # the last converged increment of the step (displacement change, dt) and the one
+            # before it: the predictor of the next one (EXTRAPOLATION=LINEAR uses the last,
+            # PARABOLIC both); none at a step start
+            last = earlier = front = None        # and how its slip fronts moved (front_holds)
             stepper = Stepper.start(step, controls)
         free = FreeDofs(self.problem.pattern, loads.constrained)
         self._start_step(si, step, loads, controls)
@@ -355,7 +357,9 @@ class Controller:
             if self.problem.refresh(self.u):      # two-body contact re-paired: a new pattern
                 free = FreeDofs(self.problem.pattern, loads.constrained)
             conv = self._increment(si, step, loads, free, solver, settings, controls, stepper,
-                                   last, front)
+                                   last, front, earlier)
+            # the increment before the last: kept (and in the restart data) for PARABOLIC only
+            earlier = last if controls["EXTRAPOLATION"] == "PARABOLIC" else None
             last = (conv.u - self.u, stepper.attempt)
             before = self._contact_states()
             self._commit(conv, loads, free)
@@ -364,7 +368,7 @@ class Controller:
                            stepper.cutbacks, stepper.period, stepper.finished)
             front = [(cp.x0, b, a, np.asarray(cp.tau, float)) for cp, b, a in
                      zip(self.last_contacts, before, self._contact_states())]
-            self._save_restart(si, loads, stepper, last, front)
+            self._save_restart(si, loads, stepper, last, front, earlier)
         self._log_step_energy(si)
         self._contact_advice(si)
         self.reached = loads.reached(self.model)
@@ -426,7 +430,7 @@ class Controller:
             w.start_step(si + 1, step)
 
     def _increment(self, si, step, loads, free, solver, settings, controls, stepper, last,
-                   front=None):
+                   front=None, earlier=None):
         """One converged increment: attempts from :meth:`Stepper.trial`, cut back on every
         typed failure until one converges; StepFailed when the stepper runs out."""
         where = lambda: (f"at step time {stepper.t:g} of {stepper.period:g} "    # noqa: E731
@@ -439,7 +443,7 @@ class Controller:
             try:
                 # a cut-back attempt predicts no front: the prediction may be what failed
                 return self._attempt(step, loads, free, solver, settings, controls, stepper, last,
-                                     front if stepper.cutbacks == 0 else None)
+                                     front if stepper.cutbacks == 0 else None, earlier)
             except (ConvergenceFailure, SingularMatrixError) as exc:
                 reason = self._failure_text(exc, free)
                 if isinstance(exc, SingularMatrixError) and not self.has_contact:
@@ -475,7 +479,7 @@ class Controller:
         last one (``front``: per contact group (x0, state codes before, after, tau); none at a step
         start or with EXTRAPOLATION=NONE, as the displacement predictor)."""
         holds = {}
-        if front is not None and last is not None and controls["EXTRAPOLATION"] == "LINEAR":
+        if front is not None and last is not None and controls["EXTRAPOLATION"] != "NONE":
             for k, (x0, before, after, tau) in zip(self.problem.indices(CONTACT), front):
                 if before.shape == after.shape == tau.shape == (len(x0),):
                     holds[self.problem.group_names[k]] = front_holds(x0, before, after, tau,
@@ -483,7 +487,7 @@ class Controller:
         return FrontPredictor(holds)
 
     def _attempt(self, step, loads: StepLoads, free, solver, settings, controls, stepper, last,
-                 front=None):
+                 front=None, earlier=None):
         """One Newton solve of the increment ``stepper.attempt`` from the step time reached."""
         model, problem = self.model, self.problem
         t, dt = stepper.t, stepper.attempt
@@ -498,7 +502,8 @@ class Controller:
         u_c = loads.bc_values(model, t_new)
         start, predicted = first_iterate(
             self.u, last, dt, controls["EXTRAPOLATION"],
-            tools.predictor_context(problem, ctx, self.u, free.constrained, u_c), self.nodal)
+            tools.predictor_context(problem, ctx, self.u, free.constrained, u_c), self.nodal,
+            earlier)
         watched = {k: problem.group_names[k] for k in problem.indices(CONTACT)}
         log.info("  increment at step time %g, dt %g", t_new, dt)
         # an overflow becomes inf or NaN, which Newton reports as a typed failure (NotANumber:
@@ -676,7 +681,7 @@ class Controller:
 
     # -- restart ---------------------------------------------------------------------------
     def _save_restart(self, si, loads: StepLoads, stepper: Stepper, last=None,
-                      front=None) -> None:
+                      front=None, earlier=None) -> None:
         state = stepper.state()
         data = {"deck": np.array(self.deck.path), "deck_digest": np.array(self.deck.digest),
                 "deck_parameters": np.array(json.dumps(self.deck.parameters)),
@@ -689,6 +694,8 @@ class Controller:
                 "u": self.u, "reaction": self.reaction}
         if last is not None:            # the predictor of the next increment, for a same-path resume
             data["last_du"], data["last_dt"] = last[0], np.array(last[1])
+        if earlier is not None:         # and the increment before it (PARABOLIC)
+            data["earlier_du"], data["earlier_dt"] = earlier[0], np.array(earlier[1])
         for i, arrays in enumerate(front or ()):      # and its slip fronts
             for name, v in zip(FRONT_ARRAYS, arrays):
                 data[f"front_{name}_{i}"] = v
@@ -728,10 +735,13 @@ class Controller:
             self.time_offset += loads.period
             return {"step": si + 1, "loads": None}
         last = (data["last_du"].copy(), float(data["last_dt"])) if "last_du" in data else None
+        earlier = ((data["earlier_du"].copy(), float(data["earlier_dt"]))
+                   if "earlier_du" in data else None)
         front = [tuple(data[f"front_{name}_{i}"].copy() for name in FRONT_ARRAYS)
                  for i in range(len(self.problem.indices(CONTACT))) if f"front_x0_{i}" in data]
         return {"step": si, "loads": loads, "t": t, "dt": float(data["dt"]),
-                "inc": int(data["inc"]), "last": last, "front": front or None}
+                "inc": int(data["inc"]), "last": last, "front": front or None,
+                "earlier": earlier}
 
 
 def tracks_energy(model) -> bool:
