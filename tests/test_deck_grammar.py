@@ -285,3 +285,15 @@ def test_axisymmetric_aliases_and_second_mesh_numbering(tmp_path):
     # a second mesh numbers on after the largest ids: nodes 5..8, element 8
     assert list(m.node_ids) == [1, 2, 3, 4, 5, 6, 7, 8] and list(m.elsets["M"]) == [8]
     np.testing.assert_array_equal(m.coords[m.blocks[1].conn[0]], [[2, 0], [3, 0], [3, 1], [2, 1]])
+
+
+def test_line_numbers_after_tab_indented_lines_are_the_files(tmp_path):
+    """pyparsing parses a text with its tabs expanded (columns of 8): the line numbers are
+    counted in that text, else every line after a tab-indented one is numbered later (a bad
+    line's message pointed at another line).  Found by helper small6's differential test."""
+    text = "x\n\t\t\t<P>\nA\n\t1,\t2\nB"
+    assert [o.line for o in GRAMMAR.parse_text(text, 10)] == [11, 12, 13, 14, 15]
+    deck = write(tmp_path, "*NODE\n\t\t1,\t0.,\t0.\n\t\t2,\t1.,\t0.\n3, 1 2\n")
+    with pytest.raises(DeckError) as err:
+        parse_deck(deck)
+    assert [p.line for p in err.value.problems] == [4]

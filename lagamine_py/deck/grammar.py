@@ -278,7 +278,8 @@ class _Grammar:
 
     def parse_text(self, text: str, offset: int = 0) -> list:
         """Line objects of a stretch of a file's text that starts after line ``offset``."""
-        self._local.starts = [m.end() for m in re.finditer("\n", text)]
+        # positions in the text pyparsing parses: its parse_string expands the tabs first
+        self._local.starts = [m.end() for m in re.finditer("\n", text.expandtabs())]
         self._local.offset = offset
         return list(self.deck.parse_string(text, parse_all=True))
 
