@@ -163,3 +163,46 @@ def test_a_failed_review_starts_the_count_again():
     assert err.value.history[2:] == pytest.approx([0.5, 1 / 3] * 4)
     assert str(err.value).startswith("cut back at iteration 9: |R|/F = 3.333e-01 would reach "
                                      "RTOL in ~43 more iterations")
+
+
+# ------------------------------------------------------------ through the step controller
+
+
+class LongStepSpring(RatioSpring):
+    """rho = -1 (stalled) over an increment longer than 0.3, an exact tangent over a shorter
+    one: the increment of dt 1 cannot converge, its retry at dt 0.25 converges in one solve."""
+
+    def compute(self, u_new, u_old, state, ctx, tangent=True):
+        self.rho = -1.0 if ctx.t_new - ctx.t_old > 0.3 else 0.0
+        return super().compute(u_new, u_old, state, ctx, tangent)
+
+
+def _run(tmp_path, controls):
+    from lagamine_py.model import CLoad, Step
+    from lagamine_py.solver import run
+    from test_solver_fakes import Recorder, make_model, make_problem
+    load = CLoad("N0", np.array([0]), 1, 2.0)
+    model = make_model(1, [Step(name="S", dt0=1.0, dt_max=1.0, cloads=[load],
+                                controls=dict(controls, GROWTH=1.0))])
+    groups = [LongStepSpring([[GROUND, 0]], 1.0, 0.0), Springs([[GROUND, 1]], 1.0)]
+    rec = Recorder()
+    out = run(model, tmp_path, writers=[rec],
+              problem=make_problem(model, groups))
+    return out, rec
+
+
+def test_the_controller_cuts_back_at_ir_and_says_why(tmp_path):
+    """The step's first attempt (dt 1) stalls at |R|/F = 1, 0.5 ...: the failed attempt the
+    writers see (the .sta's row) took 8 solves, its reason "slow convergence" and the message
+    the rule's; the retry at dt 0.25 and the rest converge: the same increments as with the
+    rule off, whose failed attempt ran to MAXIT (25 solves)."""
+    out, rec = _run(tmp_path / "on", {})
+    assert out.status == 0
+    (failed,) = rec.failed
+    assert (failed.reason, failed.iterations, failed.dt) == ("slow convergence", 8, 1.0)
+    assert "cut back at iteration 8: |R|/F = 1.000e+00 did not fall" in failed.message
+    off, rec_off = _run(tmp_path / "off", {"IR": 0})
+    assert [(f.reason, f.iterations) for f in rec_off.failed] == [("iteration limit", 25)]
+    assert [r.step_time for r in rec.results] == [r.step_time for r in rec_off.results] \
+        == pytest.approx([0.25, 0.5, 0.75, 1.0])
+    assert rec.results[-1].u[0, 0] == rec_off.results[-1].u[0, 0] == pytest.approx(2.0)

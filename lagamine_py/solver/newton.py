@@ -23,15 +23,19 @@ the increment; an increment with no state change is judged as before, bit for bi
 The iteration limit: MAXIT, or later when an observer restarts the search after a failed review
 (:meth:`IterationObserver.restart_iterations`: the contact stabilisation's release of every
 frozen point); past it, the rate rule (:data:`RATE_GRACE`) lets an attempt that converges
-without states switching finish.
+without states switching finish.  Before it, the early cut-back (``*CONTROLS IR``, ``IC``,
+:func:`_early_cut`): from IR iterations into the attempt or into the round after a failed
+review, an equilibrium iteration (no state switched) whose logarithmic rate needs more than IC
+further iterations stops the attempt (:class:`SlowConvergence`), as Abaqus' I_R / I_C check.
 
 Linear solves go through :class:`~lagamine_py.solver.reuse.FactorReuse` (``*CONTROLS
 KRYLOV``): GMRES on the factor in hand when it converges within a few steps, a new
 factorisation otherwise.
 
 Each iteration's norms go to the ``lagamine_py.solver`` logger (quadratic convergence shows
-there).  Failures are typed (:class:`IterationLimit`, :class:`DivergingResidual`,
-:class:`NotANumber`, :class:`GroupFailure`, and ``SingularMatrixError`` from
+there).  Failures are typed (:class:`IterationLimit`, :class:`SlowConvergence`,
+:class:`DivergingResidual`, :class:`NotANumber`, :class:`GroupFailure`, and
+``SingularMatrixError`` from
 :mod:`~lagamine_py.solver.linear`); the step controller catches them and cuts back.
 
 Imposed DOFs: the first iteration solves ``K_ff du_f = -R_f - K_fc du_c`` with ``du_c`` the
