@@ -206,3 +206,28 @@ def test_the_controller_cuts_back_at_ir_and_says_why(tmp_path):
     assert [r.step_time for r in rec.results] == [r.step_time for r in rec_off.results] \
         == pytest.approx([0.25, 0.5, 0.75, 1.0])
     assert rec.results[-1].u[0, 0] == rec_off.results[-1].u[0, 0] == pytest.approx(2.0)
+
+
+def test_the_recorded_replay_stops_where_the_rule_stops(tmp_path):
+    """tools/newton_attempts.py: the step of the controller test recorded with the rule off
+    (its first attempt: 25 solves to MAXIT, 1, 0.5 ... with no state switching), then the rule
+    replayed on the record stops it at pass 8, the pass the live rule cut it at; the converged
+    attempts it leaves alone; IR = 0 stops nothing."""
+    import sys
+    from pathlib import Path
+    from lagamine_py.model import CLoad, Step
+    from test_solver_fakes import make_model, make_problem
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+    from newton_attempts import record, rule_stop, verdicts
+    load = CLoad("N0", np.array([0]), 1, 2.0)
+    model = make_model(1, [Step(name="S", dt0=1.0, dt_max=1.0, cloads=[load],
+                                controls={"GROWTH": 1.0, "IR": 0})])
+    groups = [LongStepSpring([[GROUND, 0]], 1.0, 0.0), Springs([[GROUND, 1]], 1.0)]
+    attempts = record(model, tmp_path, make_problem(model, groups))
+    assert [a["outcome"] for a in attempts] == ["iteration limit"] + ["converged"] * 4
+    first = attempts[0]
+    assert first["solves"] == 25 and first["switched"] == [] and first["reviews"] == []
+    assert first["history"][:4] == [1.0, 0.5, 1.0, 0.5]
+    assert rule_stop(first, 8, 10) == 8 and rule_stop(first, 5, 10) == 5
+    assert verdicts(attempts, 8, 10) == ([], [(0, 8)])
+    assert verdicts(attempts, 0, 10) == ([], [(0, None)])

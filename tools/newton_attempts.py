@@ -27,8 +27,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def record(model, outdir: Path) -> list[dict]:
-    """Run ``model`` (its controls as given) and return one dict per Newton attempt:
+def record(model, outdir: Path, problem=None) -> list[dict]:
+    """Run ``model`` (its controls as given; ``problem``: a prebuilt one, as
+    :func:`lagamine_py.solver.run` takes) and return one dict per Newton attempt:
     ``history`` (|R|/F per pass), ``switched`` (passes whose last solve switched a watched
     state), ``reviews`` (passes of failed reviews), ``limits`` (the iteration limit after each),
     ``maxit``, ``rtol``, ``outcome`` ("converged" or the failure's reason), ``solves``."""
@@ -82,7 +83,7 @@ def record(model, outdir: Path) -> list[dict]:
     newton._newton, newton._check_divergence, newton._review = _newton, check, review
     steps_mod.solve_increment = solve_increment
     try:
-        steps_mod.run(model, outdir)
+        steps_mod.run(model, outdir, problem=problem)
     finally:
         newton._newton, newton._check_divergence, newton._review = inner_newton, inner_check, \
             inner_review
