@@ -95,7 +95,8 @@ def rule_stop(a: dict, ir: int, ic: int) -> int | None:
     """The pass at which the early cut-back (``*CONTROLS IR=ir, IC=ic``:
     :func:`lagamine_py.solver.newton._early_cut`'s conditions, replayed on the record) stops
     the recorded attempt ``a``, or None.  The run's path up to that pass is the recorded one,
-    so the replay is what the rule does."""
+    so the replay is what the rule does (passes counted as the rule counts them, by the
+    residuals of the history: ``switched`` and ``reviews`` hold such indices)."""
     from lagamine_py.solver.newton import _iterations_to_go
     h, switched, reviews = a.get("history", []), set(a["switched"]), a["reviews"]
     for k in range(1, len(h)):

@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["CutbackRequest", "ReturnMappingError", "ConvergenceFailure", "IterationLimit",
-           "SlowConvergence", "DivergingResidual", "NotANumber", "ContactNotSettled", "GroupFailure",
-           "SingularMatrixError"]
+           "SlowConvergence", "DivergingResidual", "NotANumber", "ContactNotSettled",
+           "GroupFailure", "SingularMatrixError"]
 
 
 class CutbackRequest(ArithmeticError):

@@ -92,7 +92,7 @@ class Settings:
     linesearch: bool = False
     #: severe discontinuity iterations: no growth verdict while observed states switch
     sdi: bool = True
-    #: the early cut-back (:func:`_iterations_to_go`): from this many iterations of an attempt
+    #: the early cut-back (:func:`_early_cut`): from this many iterations of an attempt
     #: or of a round after a failed review (0: off) ...
     ir: int = 8
     #: ... an equilibrium iteration whose rate needs more than this many iterations cuts back
@@ -251,7 +251,9 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             # iterations count the review passes too, which solve nothing; the .sta counts solves
             raise IterationLimit(f"no convergence in {k} iterations ({solves} linear solves, "
                                  f"|R|/F = {rel:.3e})", history)
-        if settings.ir and k - watch.since >= max(settings.ir, 2):   # a pair of the round
+        # passes counted as residuals (an energy convergence's extra one included, as the review
+        # that follows it counts), two at least: a pair of the round
+        if settings.ir and len(history) - 1 - watch.since >= max(settings.ir, 2):
             _early_cut(history, settings, k, lambda: watch.switching(ev.states))
         _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
         if not _all_finite(ev.data):               # else the solver calls it "singular"
@@ -465,7 +467,7 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
                          f"{held} disagree with the free law at convergence (|R|/F = {rel:.3e} "
                          f"with the free law)", history + [rel])
     watch.limit = max(watch.limit, k + watch.restart_iterations())
-    watch.since = k
+    watch.since = len(history) - 1          # the review's residual: the round starts there
     ev = None                       # (its tangent and states) not alive through the next one
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
