@@ -30,14 +30,14 @@ class RatioSpring(Springs):
     the spring's force).  While a context holds values (``freeze_contact``) the spring is
     ``2 k d`` with its exact tangent: one solve converges it, where the free law disagrees."""
 
-    def __init__(self, pairs, k, rho):
+    def __init__(self, pairs, k, rho, held_rho=0.0):
         super().__init__(pairs, k)
-        self.rho = rho
+        self.rho, self.held_rho = rho, held_rho
 
     def compute(self, u_new, u_old, state, ctx, tangent=True):
         d = self.elongation(u_new)
         if ctx.freeze_contact is not None:
-            f, K = self.blocks(2.0 * self.k * d, 2.0 * self.k + 0.0 * d)
+            f, K = self.blocks(2.0 * self.k * d, 2.0 * self.k / (1.0 - self.held_rho) + 0.0 * d)
         else:
             f, K = self.blocks(self.k * d, self.k / (1.0 - self.rho) + 0.0 * d)
         return GroupResult(f, K if tangent else None, {})
@@ -163,6 +163,26 @@ def test_a_failed_review_starts_the_count_again():
     assert err.value.history[2:] == pytest.approx([0.5, 1 / 3] * 4)
     assert str(err.value).startswith("cut back at iteration 9: |R|/F = 3.333e-01 would reach "
                                      "RTOL in ~43 more iterations")
+
+
+def test_a_review_after_an_energy_convergence_counts_its_extra_residual():
+    """The held law at the ratio 1e-6 (|R|/F 1, 1e-6, 1e-12) under RTOL = 1e-15: the energy
+    test converges it at the third solve (pass 2), with one more residual (0, history index 3);
+    its review fails and the stalled free law follows (0.5, 1/3 ..., pass 3 = index 4).  The
+    rule counts the round from that extra residual by the history, as the replay of
+    tools/newton_attempts.py does: cut at index 3 + 8 = 11 (pass 10, after 3 + 7 solves), not
+    one pass later as a count of passes would."""
+    problem, free = setup([RatioSpring([[GROUND, 0]], 1.0, -1.0, held_rho=1e-6),
+                           Springs([[GROUND, 1]], 1.0)], 1, [])
+    with pytest.raises(SlowConvergence) as err:
+        solve_increment(problem, SpluSolver(), free, np.zeros(2), problem.init_states(),
+                        StepContext(), np.zeros(0), np.array([2.0, 0.0]), Settings(rtol=1e-15),
+                        observers=(HoldOnce(),))
+    h = err.value.history
+    assert h[:3] == pytest.approx([1.0, 1e-6, 1e-12], rel=1e-3) and h[3] < 1e-15
+    assert h[4:] == pytest.approx([0.5, 1 / 3] * 4)
+    assert len(h) == 12 and err.value.solves == 10
+    assert str(err.value).startswith("cut back at iteration 10: ")
 
 
 # ------------------------------------------------------------ through the step controller
