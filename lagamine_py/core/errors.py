@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["CutbackRequest", "ReturnMappingError", "ConvergenceFailure", "IterationLimit",
-           "DivergingResidual", "NotANumber", "ContactNotSettled", "GroupFailure",
-           "SingularMatrixError"]
+           "SlowConvergence", "DivergingResidual", "NotANumber", "ContactNotSettled",
+           "GroupFailure", "SingularMatrixError"]
 
 
 class CutbackRequest(ArithmeticError):
@@ -54,6 +54,12 @@ class ConvergenceFailure(Exception):
 
 class IterationLimit(ConvergenceFailure):
     reason = "iteration limit"
+
+
+class SlowConvergence(ConvergenceFailure):
+    """An equilibrium iteration's rate says the residual will not reach the tolerance within
+    ``*CONTROLS IC`` more iterations (the early cut-back after ``IR`` iterations)."""
+    reason = "slow convergence"
 
 
 class DivergingResidual(ConvergenceFailure):

@@ -23,15 +23,19 @@ the increment; an increment with no state change is judged as before, bit for bi
 The iteration limit: MAXIT, or later when an observer restarts the search after a failed review
 (:meth:`IterationObserver.restart_iterations`: the contact stabilisation's release of every
 frozen point); past it, the rate rule (:data:`RATE_GRACE`) lets an attempt that converges
-without states switching finish.
+without states switching finish.  Before it, the early cut-back (``*CONTROLS IR``, ``IC``,
+:func:`_early_cut`): from IR iterations into the attempt or into the round after a failed
+review, an equilibrium iteration (no state switched) whose logarithmic rate needs more than IC
+further iterations stops the attempt (:class:`SlowConvergence`), as Abaqus' I_R / I_C check.
 
 Linear solves go through :class:`~lagamine_py.solver.reuse.FactorReuse` (``*CONTROLS
 KRYLOV``): GMRES on the factor in hand when it converges within a few steps, a new
 factorisation otherwise.
 
 Each iteration's norms go to the ``lagamine_py.solver`` logger (quadratic convergence shows
-there).  Failures are typed (:class:`IterationLimit`, :class:`DivergingResidual`,
-:class:`NotANumber`, :class:`GroupFailure`, and ``SingularMatrixError`` from
+there).  Failures are typed (:class:`IterationLimit`, :class:`SlowConvergence`,
+:class:`DivergingResidual`, :class:`NotANumber`, :class:`GroupFailure`, and
+``SingularMatrixError`` from
 :mod:`~lagamine_py.solver.linear`); the step controller catches them and cuts back.
 
 Imposed DOFs: the first iteration solves ``K_ff du_f = -R_f - K_fc du_c`` with ``du_c`` the
@@ -52,7 +56,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import (ConvergenceFailure, DivergingResidual, IterationLimit,  # noqa: F401
-                           NotANumber, SingularMatrixError)
+                           NotANumber, SingularMatrixError, SlowConvergence)
 from ..elements.base import LATER
 from .reuse import FactorReuse, forcing
 
@@ -88,12 +92,17 @@ class Settings:
     linesearch: bool = False
     #: severe discontinuity iterations: no growth verdict while observed states switch
     sdi: bool = True
+    #: the early cut-back (:func:`_early_cut`): from this many iterations of an attempt
+    #: or of a round after a failed review (0: off) ...
+    ir: int = 8
+    #: ... an equilibrium iteration whose rate needs more than this many iterations cuts back
+    ic: int = 10
 
     @classmethod
     def from_controls(cls, controls: dict[str, Any]) -> "Settings":
         return cls(rtol=float(controls["RTOL"]), etol=float(controls["ETOL"]),
                    maxit=int(controls["MAXIT"]), linesearch=bool(controls["LINESEARCH"]),
-                   sdi=bool(controls["SDI"]))
+                   sdi=bool(controls["SDI"]), ir=int(controls["IR"]), ic=int(controls["IC"]))
 
 
 class IterationObserver:
@@ -242,6 +251,10 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             # iterations count the review passes too, which solve nothing; the .sta counts solves
             raise IterationLimit(f"no convergence in {k} iterations ({solves} linear solves, "
                                  f"|R|/F = {rel:.3e})", history)
+        # passes counted as residuals (an energy convergence's extra one included, as the review
+        # that follows it counts), two at least: a pair of the round
+        if settings.ir and len(history) - 1 - watch.since >= max(settings.ir, 2):
+            _early_cut(history, settings, k, lambda: watch.switching(ev.states))
         _check_divergence(history, lambda: settings.sdi and watch.switching(ev.states))
         if not _all_finite(ev.data):               # else the solver calls it "singular"
             raise NotANumber(f"non-finite tangent stiffness at iteration {k} (a material or "
@@ -296,11 +309,13 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
 class _Observers:
     """The observers of an increment as one: the context passes through each in turn.
     ``limit``: the iteration limit, MAXIT or later after a restart (:meth:`restart_iterations`,
-    moved by :func:`_review`)."""
+    moved by :func:`_review`); ``since``: the pass the early cut-back counts IR from (0, or the
+    last failed review: a new problem, whose rate starts anew)."""
 
     def __init__(self, observers, limit: int):
         self.all = tuple(observers)
         self.limit = limit
+        self.since = 0          # the pass of the last failed review (the round's start)
 
     @property
     def active(self) -> bool:
@@ -367,6 +382,35 @@ def _solves_to_go(history: list[float], rtol: float, most: int) -> int | None:
     return None
 
 
+def _early_cut(history: list[float], settings: Settings, k: int, switching) -> None:
+    """The early cut-back at pass ``k``, IR or more passes into the attempt or round: raises
+    :class:`SlowConvergence` when the last solve switched no watched state (``switching()``
+    False: an equilibrium iteration, whose rate is Newton's; asked only when the rate fails)
+    and :func:`_iterations_to_go` exceeds IC.  Abaqus' time incrementation control does the
+    same with I_R = 8 and I_C = 10 (its "logarithmic rate of convergence" check)."""
+    to_go = _iterations_to_go(history, settings.rtol)
+    if to_go <= settings.ic or switching():
+        return
+    why = ("did not fall over the last iteration" if not np.isfinite(to_go) else
+           f"would reach RTOL in ~{to_go:.0f} more iterations at its rate")
+    raise SlowConvergence(f"cut back at iteration {k}: |R|/F = {history[-1]:.3e} {why} "
+                          f"(more than IC = {settings.ic}; no contact state switched)", history)
+
+
+def _iterations_to_go(history: list[float], rtol: float) -> float:
+    """Iterations the residual needs to reach ``rtol`` at the logarithmic rate of the last
+    iteration, ``log(rtol / r_k) / log(r_k / r_k-1)`` (linear convergence at that ratio: the
+    pessimist's count, where :func:`_solves_to_go`'s quadratic model is the optimist's); inf
+    when the residual did not fall, 0 when it is at ``rtol`` already or the rate is unknown
+    (a zero residual before it)."""
+    prev, r = history[-2], history[-1]
+    if r <= rtol or not prev > 0.0:
+        return 0.0
+    if not r < prev:
+        return float("inf")
+    return float(np.log(rtol / r) / np.log(r / prev))
+
+
 def _tangent_wanted(history: list[float], rtol: float):
     """True, or ``LATER`` when the next iterate is expected to converge: Newton's quadratic
     model ``r_k+1 = r_k^3 / r_k-1^2`` below ten times the tolerance.  The evaluation then
@@ -423,6 +467,7 @@ def _review(problem, watch, u, u_old, states, ctx, f_ext, free, scale, tol, hist
                          f"{held} disagree with the free law at convergence (|R|/F = {rel:.3e} "
                          f"with the free law)", history + [rel])
     watch.limit = max(watch.limit, k + watch.restart_iterations())
+    watch.since = len(history) - 1          # the review's residual: the round starts there
     ev = None                       # (its tangent and states) not alive through the next one
     return None, problem.evaluate(u, u_old, states, ctx_k, True), ctx_k
 
