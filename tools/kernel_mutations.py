@@ -131,7 +131,7 @@ MUTATIONS = [
     M("solid: relative f33 without F33_old", SOLID,
       "f33 = Fp[4 * _L + l] / v[_OLD + 4 * _L + l]", "f33 = Fp[4 * _L + l]"),
     M("solid: NLGEOM material tangent's hoop row dropped", SOLID,
-      "m[2 * _L + l] = g[2 * _L + l] if k == 0 else 0.0", "m[2 * _L + l] = 0.0"),
+      "m[2 * _L + l] = g[2 * _L + l]", "m[2 * _L + l] = 0.0"),
     M("solid: Cauchy stress with J = det of the in-plane F", SOLID,
       "J = det2 * Fp[4 * _L + l]", "J = det2"),
     M("solid: geometric tangent dropped", SOLID,

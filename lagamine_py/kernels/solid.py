@@ -242,7 +242,7 @@ def scratch_arrays(nen: int, nq: int) -> tuple:
     Of :func:`_solid_kernel`, flat, lane axis last (``LANES``): the block's elements (l,); the
     lane array (rows ``_W`` ...); U: u_new then u_old (2 a + i); X: dN/dX (q, a, j); Fq: F00,
     F01, F10, F11, F33, r (q, 6); G: dN/dx and the hoop row (a, 3); Ml: M (d, s); fl: element
-    force (d,); Ke: element tangent by node pair (a, b, 4: [2a, 2b], [2a, 2b+1], [2a+1, 2b],
+    force (d,); Ke: element tangent by node pair (b, a, 4: [2a, 2b], [2a, 2b+1], [2a+1, 2b],
     [2a+1, 2b+1]).  Of the law, one point: trial strain, stress, D (4, 4), elastic strain."""
     nd = 2 * nen
     return (np.empty((nen, 2)), np.empty((nq, 2, 2)), np.empty(nq), np.empty(nq),
@@ -340,18 +340,20 @@ def _gather(el, conn, u_new, u_old, dNdX, nen, nq, U, X):
 def _block_deformation(U, X, Nq, R0, el, q, nen, axisym, Fq):
     """In-plane F, F33 and the current radius of point q of every lane (``_deformation``)."""
     Fp = _view(Fq, q * 6, 6)
-    for i in range(2):
-        for j in range(2):
-            o = (2 * i + j) * _L
-            for l in range(_L):
-                Fp[o + l] = 0.0
-            for a in range(nen):
-                u, x = _view(U, 2 * a + i, 1), _view(X, (q * nen + a) * 2 + j, 1)
-                for l in range(_L):
-                    Fp[o + l] += u[l] * x[l]
-            one = 1.0 if i == j else 0.0
-            for l in range(_L):
-                Fp[o + l] = Fp[o + l] + one
+    for i in range(4 * _L):
+        Fp[i] = 0.0
+    for a in range(nen):                # the four sums over a, each in the order of a
+        u, x = _view(U, 2 * a, 2), _view(X, (q * nen + a) * 2, 2)
+        for l in range(_L):
+            Fp[l] += u[l] * x[l]
+            Fp[_L + l] += u[l] * x[_L + l]
+            Fp[2 * _L + l] += u[_L + l] * x[l]
+            Fp[3 * _L + l] += u[_L + l] * x[_L + l]
+    for l in range(_L):
+        Fp[l] = Fp[l] + 1.0
+        Fp[_L + l] = Fp[_L + l] + 0.0
+        Fp[2 * _L + l] = Fp[2 * _L + l] + 0.0
+        Fp[3 * _L + l] = Fp[3 * _L + l] + 1.0
     if axisym:
         for l in range(_L):
             Fp[5 * _L + l] = 0.0
@@ -515,33 +517,32 @@ def _large_strain_block(n, el, q, nen, Fq, X, old, Nq, axisym, kind, lp, Del, ep
             g[2 * _L + l] = na / Fp[5 * _L + l] if axisym else 0.0
     if tangent:
         for b in range(nen):
-            g = _view(G, 3 * b, 3)
-            for k in range(2):
-                m = _view(Ml, (2 * b + k) * 4, 4)
-                for l in range(_L):
-                    cs, sn = v[_EIG + 2 * _L + l], v[_EIG + 3 * _L + l]
-                    P0_00, P0_01, P0_11 = 0.5 * (1.0 + cs), 0.5 * sn, 0.5 * (1.0 - cs)
-                    P1_00, P1_01, P1_11 = P0_11, -P0_01, P0_00
-                    S_00, S_01, S_11 = -sn, cs, sn
-                    x0, x1 = g[l], g[_L + l]
-                    h0 = x0 * v[_B + l] + x1 * v[_B + 2 * _L + l]          # h_bn = dN_b/dx_m b_mn
-                    h1 = x0 * v[_B + _L + l] + x1 * v[_B + 3 * _L + l]
-                    # (P h_b)_k = sum_n P_kn h_bn, then dE_ijbk = 2 (c0 P0_ij (P0 h)_k + ...)
-                    if k == 0:
-                        p0 = P0_00 * h0 + P0_01 * h1
-                        p1 = P1_00 * h0 + P1_01 * h1
-                        p2 = S_00 * h0 + S_01 * h1
-                    else:
-                        p0 = P0_01 * h0 + P0_11 * h1
-                        p1 = P1_01 * h0 + P1_11 * h1
-                        p2 = S_01 * h0 + S_11 * h1
-                    u0 = 2.0 * v[_C + l] * p0
-                    u1 = 2.0 * v[_C + _L + l] * p1
-                    u2 = 2.0 * v[_C + 2 * _L + l] * p2
-                    m[l] = u0 * P0_00 + u1 * P1_00 + u2 * S_00
-                    m[_L + l] = u0 * P0_11 + u1 * P1_11 + u2 * S_11
-                    m[3 * _L + l] = 2.0 * (u0 * P0_01 + u1 * P1_01 + u2 * S_01)
-                    m[2 * _L + l] = g[2 * _L + l] if k == 0 else 0.0   # d eps33 = du_r / r
+            g, m = _view(G, 3 * b, 3), _view(Ml, 8 * b, 8)
+            for l in range(_L):
+                cs, sn = v[_EIG + 2 * _L + l], v[_EIG + 3 * _L + l]
+                P0_00, P0_01, P0_11 = 0.5 * (1.0 + cs), 0.5 * sn, 0.5 * (1.0 - cs)
+                P1_00, P1_01, P1_11 = P0_11, -P0_01, P0_00
+                S_00, S_01, S_11 = -sn, cs, sn
+                x0, x1 = g[l], g[_L + l]
+                h0 = x0 * v[_B + l] + x1 * v[_B + 2 * _L + l]          # h_bn = dN_b/dx_m b_mn
+                h1 = x0 * v[_B + _L + l] + x1 * v[_B + 3 * _L + l]
+                c0, c1, c2 = 2.0 * v[_C + l], 2.0 * v[_C + _L + l], 2.0 * v[_C + 2 * _L + l]
+                # (P h_b)_k = sum_n P_kn h_bn, then dE_ijbk = 2 (c0 P0_ij (P0 h)_k + ...);
+                # the DOFs k = 0 and 1 of node b written out (one lane loop per node)
+                u0 = c0 * (P0_00 * h0 + P0_01 * h1)
+                u1 = c1 * (P1_00 * h0 + P1_01 * h1)
+                u2 = c2 * (S_00 * h0 + S_01 * h1)
+                m[l] = u0 * P0_00 + u1 * P1_00 + u2 * S_00
+                m[_L + l] = u0 * P0_11 + u1 * P1_11 + u2 * S_11
+                m[3 * _L + l] = 2.0 * (u0 * P0_01 + u1 * P1_01 + u2 * S_01)
+                m[2 * _L + l] = g[2 * _L + l]                       # d eps33 = du_r / r
+                u0 = c0 * (P0_01 * h0 + P0_11 * h1)
+                u1 = c1 * (P1_01 * h0 + P1_11 * h1)
+                u2 = c2 * (S_01 * h0 + S_11 * h1)
+                m[4 * _L + l] = u0 * P0_00 + u1 * P1_00 + u2 * S_00
+                m[5 * _L + l] = u0 * P0_11 + u1 * P1_11 + u2 * S_11
+                m[7 * _L + l] = 2.0 * (u0 * P0_01 + u1 * P1_01 + u2 * S_01)
+                m[6 * _L + l] = 0.0
     _force_and_tangent(nen, q, Nq, G, Ml, v, _view(Fp, 5, 1), tangent, True, axisym, fl, Ke)
 
 
@@ -553,8 +554,8 @@ def _force_and_tangent(nen, q, Nq, G, Ml, v, r_, tangent, geometric, axisym, fl,
 
     Geometric part (NLGEOM): ``Kg[a i, b k] = -w dN_a/dx_k (dN_b/dx_j tau_ji)``, and in
     axisymmetry ``Kg[a 0, b 0] -= w tau_33 / r^2 N_a N_b`` (``Nq[q]`` the N_a of the point, r
-    the lanes' current radius ``r_``).  Node b's w D M columns go to the rows ``_COL``, then the node
-    pair loop over a adds them up."""
+    the lanes' current radius ``r_``).  Node b's w D M columns go to the rows ``_COL``, then
+    :func:`_node_pairs` adds them up."""
     for l in range(_L):
         w = v[_W + l]
         v[_T + l], v[_T + _L + l] = w * v[_TAU + l], w * v[_TAU + _L + l]
@@ -623,26 +624,34 @@ def _force_and_tangent(nen, q, Nq, G, Ml, v, r_, tangent, geometric, axisym, fl,
                 cax * Nq[q, b], q0, a11
             v[_COL + 6 * _L + l], v[_COL + 7 * _L + l], v[_COL + 8 * _L + l] = q2, b11, p1
             v[_COL + 9 * _L + l], v[_COL + 10 * _L + l] = q3, b00
-        for a in range(nen):
-            g, k = _view(G, 3 * a, 3), _view(Ke, (a * nen + b) * 4, 4)
-            if axisym:
-                na = Nq[q, a]
-                for l in range(_L):
-                    x0, x1, h = g[l], g[_L + l], g[2 * _L + l]
-                    hb = v[_COL + 3 * _L + l]
-                    k[l] += (x0 * v[_COL + l] + x1 * v[_COL + _L + l]
-                                   + h * v[_COL + 2 * _L + l] - hb * na)
-                    k[_L + l] += (x0 * v[_COL + 4 * _L + l] + x1 * v[_COL + 5 * _L + l]
-                                        + h * v[_COL + 6 * _L + l])
-                    k[2 * _L + l] += x0 * v[_COL + 7 * _L + l] + x1 * v[_COL + 8 * _L + l]
-                    k[3 * _L + l] += x0 * v[_COL + 9 * _L + l] + x1 * v[_COL + 10 * _L + l]
-            else:
-                for l in range(_L):
-                    x0, x1 = g[l], g[_L + l]
-                    k[l] += x0 * v[_COL + l] + x1 * v[_COL + _L + l]
-                    k[_L + l] += x0 * v[_COL + 4 * _L + l] + x1 * v[_COL + 5 * _L + l]
-                    k[2 * _L + l] += x0 * v[_COL + 7 * _L + l] + x1 * v[_COL + 8 * _L + l]
-                    k[3 * _L + l] += x0 * v[_COL + 9 * _L + l] + x1 * v[_COL + 10 * _L + l]
+        _node_pairs(nen, b, q, Nq, G, v, Ke, axisym)
+
+
+@njit(inline="always", **_JIT)
+def _node_pairs(nen, b, q, Nq, G, v, Ke, axisym):
+    """Ke[a, b] += G_a^T (the w D M columns of node b, rows ``_COL``), one lane loop per node
+    pair.  (The loop over a inside the lane loop, unrolled for Q8, was not vectorised by LLVM:
+    twice the scalar instructions, no gain.)"""
+    for a in range(nen):
+        g, k = _view(G, 3 * a, 3), _view(Ke, (b * nen + a) * 4, 4)
+        if axisym:
+            na = Nq[q, a]
+            for l in range(_L):
+                x0, x1, h = g[l], g[_L + l], g[2 * _L + l]
+                hb = v[_COL + 3 * _L + l]
+                k[l] += (x0 * v[_COL + l] + x1 * v[_COL + _L + l]
+                         + h * v[_COL + 2 * _L + l] - hb * na)
+                k[_L + l] += (x0 * v[_COL + 4 * _L + l] + x1 * v[_COL + 5 * _L + l]
+                              + h * v[_COL + 6 * _L + l])
+                k[2 * _L + l] += x0 * v[_COL + 7 * _L + l] + x1 * v[_COL + 8 * _L + l]
+                k[3 * _L + l] += x0 * v[_COL + 9 * _L + l] + x1 * v[_COL + 10 * _L + l]
+        else:
+            for l in range(_L):
+                x0, x1 = g[l], g[_L + l]
+                k[l] += x0 * v[_COL + l] + x1 * v[_COL + _L + l]
+                k[_L + l] += x0 * v[_COL + 4 * _L + l] + x1 * v[_COL + 5 * _L + l]
+                k[2 * _L + l] += x0 * v[_COL + 7 * _L + l] + x1 * v[_COL + 8 * _L + l]
+                k[3 * _L + l] += x0 * v[_COL + 9 * _L + l] + x1 * v[_COL + 10 * _L + l]
 
 
 @njit(inline="always", **_JIT)
@@ -662,7 +671,7 @@ def _scatter(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, dofs):
             for d in range(nd):
                 a, i = d // 2, d % 2
                 for d2 in range(nd):
-                    k = ((a * nen + d2 // 2) * 4 + 2 * i + d2 % 2) * _L + l
+                    k = ((d2 // 2 * nen + a) * 4 + 2 * i + d2 % 2) * _L + l
                     data[pos[e, d, d2]] += Ke[k]
 
 
