@@ -1,4 +1,4 @@
-"""Numba kernels of the solid groups: element computation and scatter fused, element by element.
+"""Numba kernels of the solid groups: element computation and scatter fused, in blocks of elements.
 
 The optional fast path of :class:`~lagamine_py.elements.solid.SolidGroup` (``pip install
 lagamine_py[fast]``).  For one group it computes, element by element and Gauss point by Gauss
@@ -11,6 +11,19 @@ is ever formed.  The NumPy path stays the reference; results agree to round-off.
 Array axes as in :mod:`lagamine_py.elements.solid`: ``e`` element, ``q`` Gauss point, ``a``/``b``
 node, ``i``/``j``/``k``/``n`` spatial component, ``s``/``t`` 4-vector component
 [11, 22, 33, 12], ``d`` element DOF ``2 a + i``.
+
+SIMD across elements: the element loop takes ``LANES`` (16) elements at a time, every per-point
+quantity held as a row of 16 values (flat work arrays, the lane axis last), and its arithmetic
+loops run over the lanes, which LLVM turns into packed instructions (ymm ``vmulpd``/``vaddpd``;
+no ``vfmadd``: without fastmath LLVM contracts nothing).  Each lane does the scalar arithmetic
+of one element in the order the element-by-element kernel did, so every output is that
+kernel's bit for bit (``tools/kernel_calls.py --check``).  Scalar, lane by lane: the law (its
+branches, logarithms and Newton iterations), the logarithms of the Hencky strain and the
+Daleckii-Krein atanh, the gathers and the scatter.  Sixteen lanes, not 8: LLVM's loop vectoriser
+refuses a loop of fewer than 16 iterations that needs run-time alias checks (the work arrays
+may alias as far as it knows).  The last block's spare lanes repeat its last element and are
+never read.  The start of the increment (:func:`_start_kernel`, once per increment) stays
+element by element.
 
 One compiled specialisation serves every element type, law and kinematics (they are run-time
 arguments), so the first call compiles once; ``cache=True`` keeps the machine code on disk.
@@ -386,7 +399,11 @@ def _lane_law(el, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, f
             v[_D + (4 * s + t) * _L + l] = D[s, t]
 
 
-@njit(inline="always", **_JIT)
+# The three per-point block functions are called, not inlined: inlined (twice for
+# _force_and_tangent), the kernel took 22 s of CPU and 610 MB to compile instead of 11 s and
+# 250 MB, for no speed (one call per point and block of LANES elements).
+
+@njit(**_JIT)
 def _small_strain_block(n, el, q, nen, U, X, Fq, R0, Nq, axisym, kind, lp, Del, eps_e_n, peeq_n,
                         eps_e_out, peeq_out, stress_out, tangent, flags, v, G, Ml, fl, Ke, eps,
                         stress, D, eps_e):
@@ -434,7 +451,7 @@ def _small_strain_block(n, el, q, nen, U, X, Fq, R0, Nq, axisym, kind, lp, Del, 
     _force_and_tangent(nen, q, Nq, G, Ml, v, _view(Fq, 0, 1), tangent, False, axisym, fl, Ke)
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _large_strain_block(n, el, q, nen, Fq, X, old, Nq, axisym, kind, lp, Del, eps_e_n, peeq_n,
                         eps_e_out, peeq_out, stress_out, tangent, flags, v, G, Ml, fl, Ke, eps,
                         tau, D, eps_e):
@@ -546,7 +563,7 @@ def _large_strain_block(n, el, q, nen, Fq, X, old, Nq, axisym, kind, lp, Del, ep
     _force_and_tangent(nen, q, Nq, G, Ml, v, _view(Fp, 5, 1), tangent, True, axisym, fl, Ke)
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _force_and_tangent(nen, q, Nq, G, Ml, v, r_, tangent, geometric, axisym, fl, Ke):
     """f += w G^T tau and Ke += w G^T D M (+ the geometric part when ``geometric``) in every
     lane, with G the strain operator of gradients dx and hoop row hh (``G``, (a, 3)):
