@@ -385,9 +385,9 @@ def _block_deformation(U, X, Nq, R0, el, q, nen, axisym, Fq):
 
 @njit(inline="always", **_JIT)
 def _lane_law(el, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, flags,
-              stress, D, eps_e, v, l):
+              stress, D, eps_e, v, l, tangent):
     """The law at one lane's point (the trial strain in ``eps``): the new eps_e and peeq to the
-    output state, a failure to ``flags``, stress and D to the lane rows."""
+    output state, a failure to ``flags``, stress (and D for a ``tangent``) to the lane rows."""
     e = el[l]
     ok = _point_law(e, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, stress, D,
                     eps_e)
@@ -395,8 +395,10 @@ def _lane_law(el, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, f
         flags[e] = RETURN_MAP_FAILED
     for s in range(4):
         v[_TAU + s * _L + l] = stress[s]
-        for t in range(4):
-            v[_D + (4 * s + t) * _L + l] = D[s, t]
+    if tangent:
+        for s in range(4):
+            for t in range(4):
+                v[_D + (4 * s + t) * _L + l] = D[s, t]
 
 
 # The three per-point block functions are called, not inlined: inlined (twice for
@@ -438,7 +440,7 @@ def _small_strain_block(n, el, q, nen, U, X, Fq, R0, Nq, axisym, kind, lp, Del, 
         for s in range(4):
             eps[s] = (v[_SUM + s * _L + l] - v[_SUM + (4 + s) * _L + l]) + eps_e_n[e, q, s]
         _lane_law(el, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, flags,
-                  stress, D, eps_e, v, l)
+                  stress, D, eps_e, v, l, tangent)
         for s in range(4):
             stress_out[e, q, s] = stress[s]
     if tangent:                         # M = B (d, s)
@@ -502,7 +504,7 @@ def _large_strain_block(n, el, q, nen, Fq, X, old, Nq, axisym, kind, lp, Del, ep
         E01 = hl0 * P0_01 + hl1 * P1_01
         eps[0], eps[1], eps[2], eps[3] = E00, E11, 0.5 * math.log(v[_B + 4 * _L + l]), 2.0 * E01
         _lane_law(el, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, flags,
-                  tau, D, eps_e, v, l)
+                  tau, D, eps_e, v, l, tangent)
         F00, F01, F10, F11 = Fp[l], Fp[_L + l], Fp[2 * _L + l], Fp[3 * _L + l]
         det2 = F00 * F11 - F01 * F10
         J = det2 * Fp[4 * _L + l]
