@@ -17,12 +17,12 @@ CSR data and force vectors:
   difference).  Save with one tree and check with another (``PYTHONPATH=<tree> python
   tools/kernel_calls.py ...``): a change that keeps every byte keeps every run's path.
 
-``--plastic NXxNY [--element Q8PE] [--law RAMBERG_OSGOOD]``: instead, the ``tools/bench.py assembly`` group (a
-Ramberg-Osgood Q8 block, NLGEOM) from a committed state at 0.9 of its displacement, every point
-plastic (the ln P branch of the return map, as in press-then-slide's plastic zone): us per
-element with and without the tangent, the start of the increment kept (best of ``R`` calls,
-CPU).  Steadier than replayed calls under load: one large call.  ``--law ELASTIC`` or
-``J2_LINEAR`` (same block and displacements) splits the cost of the return map off.
+``--plastic NXxNY [--element Q8PE] [--law RAMBERG_OSGOOD]``: instead, the ``tools/bench.py
+assembly`` group (a Ramberg-Osgood Q8 block, NLGEOM) from a committed state at 0.9 of its
+displacement, every point plastic (the ln P branch of the return map, as in press-then-slide's
+plastic zone): us per element with and without the tangent, the start of the increment kept
+(best of ``R`` calls, CPU).  Steadier than replayed calls under load: one large call.  ``--law
+ELASTIC`` or ``J2_LINEAR`` (same block and displacements) splits the cost of the return map off.
 
 Timings only, never asserted in tests; what the kernel computes is held by the tests.
 """

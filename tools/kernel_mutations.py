@@ -3,9 +3,11 @@
 Each mutation below breaks one branch of a numba kernel (``lagamine_py/kernels/solid.py``,
 ``lagamine_py/kernels/contact.py``) -- or, to show that the comparison is two-sided, of a NumPy
 reference -- by replacing one exact piece of source text.  The tool applies them one at a time,
-runs ``pytest -x -q tests/test_kernel_twins.py`` (numba recompiles the mutated module: its cache
-is keyed on the source file's time stamp), always restores the file (also on an error or
-Ctrl-C), and prints a table: the mutation and the test that caught it, or SURVIVED.
+runs ``pytest -x -q tests/test_kernel_twins.py tests/test_solid_lanes.py`` (the second: the
+solid kernel's blocks of several ``LANES`` elements and a remainder; numba recompiles the
+mutated module: its cache is keyed on the source file's time stamp), always restores the file
+(also on an error or Ctrl-C), and prints a table: the mutation and the test that caught it, or
+SURVIVED.
 
 Every mutation must be caught.  A control (``equivalent`` set) changes the code but not what it
 computes; it must survive, which shows that a survivor would be reported.
