@@ -17,11 +17,12 @@ CSR data and force vectors:
   difference).  Save with one tree and check with another (``PYTHONPATH=<tree> python
   tools/kernel_calls.py ...``): a change that keeps every byte keeps every run's path.
 
-``--plastic NXxNY [--element Q8PE]``: instead, the ``tools/bench.py assembly`` group (a
-Ramberg-Osgood Q8 block, NLGEOM) from a committed state at 0.9 of its displacement, every point
-plastic (the ln P branch of the return map, as in press-then-slide's plastic zone): us per
-element with and without the tangent, the start of the increment kept (best of ``R`` calls,
-CPU).  Steadier than replayed calls under load: one large call.
+``--plastic NXxNY [--element Q8PE] [--law RAMBERG_OSGOOD]``: instead, the ``tools/bench.py
+assembly`` group (a Ramberg-Osgood Q8 block, NLGEOM) from a committed state at 0.9 of its
+displacement, every point plastic (the ln P branch of the return map, as in press-then-slide's
+plastic zone): us per element with and without the tangent, the start of the increment kept
+(best of ``R`` calls, CPU).  Steadier than replayed calls under load: one large call.  ``--law
+ELASTIC`` or ``J2_LINEAR`` (same block and displacements) splits the cost of the return map off.
 
 Timings only, never asserted in tests; what the kernel computes is held by the tests.
 """
@@ -94,7 +95,12 @@ def cpu_per_call(calls, tangent: bool, repeat: int, fresh_start: bool) -> float:
     return best
 
 
-def plastic_block(size: str, element: str, repeat: int) -> str:
+#: ``--law``: the plastic block's law (ELASTIC and J2_LINEAR split the cost of the law off)
+LAWS = {"RAMBERG_OSGOOD": dict(SIGMA0=250.0, ALPHA=0.5, N=10.0),
+        "J2_LINEAR": dict(SIGMAY=250.0, H=1000.0), "ELASTIC": {}}
+
+
+def plastic_block(size: str, element: str, repeat: int, law: str = "RAMBERG_OSGOOD") -> str:
     """us per element of the fused kernel on the assembly group from a plastic committed state
     (``--plastic``)."""
     from bench import E_STEEL, structured_q8
@@ -106,8 +112,8 @@ def plastic_block(size: str, element: str, repeat: int) -> str:
     nx, ny = (int(n) for n in size.split("x"))
     xy, conn = structured_q8(nx, ny)
     xy = xy + [10.0, 0.0]                                   # off the axis (axisymmetric)
-    law = get("laws", "RAMBERG_OSGOOD")(E=E_STEEL, NU=0.3, SIGMA0=250.0, ALPHA=0.5, N=10.0)
-    group = get("elements", element)(np.arange(len(conn)), conn, xy, law, 1.0)
+    material = get("laws", law)(E=E_STEEL, NU=0.3, **LAWS[law])
+    group = get("elements", element)(np.arange(len(conn)), conn, xy, material, 1.0)
     group.use_kernels(True)
     pattern = Pattern(2 * len(xy), [group.dofs])
     rng = np.random.default_rng(0)
@@ -127,7 +133,7 @@ def plastic_block(size: str, element: str, repeat: int) -> str:
             best = min(best, time.process_time() - t)
         out[tangent] = 1e6 * best / len(conn)
     plastic = float((r.state["peeq"] > state["peeq"]).mean())
-    return (f"{element} {size}, {len(conn)} elements, {plastic:.0%} of the points plastic: "
+    return (f"{element} {law} {size}, {len(conn)} elements, {plastic:.0%} of the points plastic: "
             f"with tangent {out[True]:.3f} us per element, forces only {out[False]:.3f}")
 
 
@@ -136,13 +142,14 @@ def main(argv=None) -> int:
     ap.add_argument("what", nargs="*", help="NXxNY (press-then-slide) or deck files")
     ap.add_argument("--plastic", metavar="NXxNY", help="the plastic block instead")
     ap.add_argument("--element", default="Q8PE")
+    ap.add_argument("--law", default="RAMBERG_OSGOOD", choices=sorted(LAWS))
     ap.add_argument("--calls", type=int, default=24)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--save")
     ap.add_argument("--check")
     a = ap.parse_args(argv)
     if a.plastic:
-        print(plastic_block(a.plastic, a.element, a.repeat))
+        print(plastic_block(a.plastic, a.element, a.repeat, a.law))
         return 0
     runs, got = collect_runs(a.what, a.check, record, a.calls, reset_recorded=True), {}
     for what, (calls, total) in runs.items():

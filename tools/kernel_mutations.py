@@ -3,9 +3,11 @@
 Each mutation below breaks one branch of a numba kernel (``lagamine_py/kernels/solid.py``,
 ``lagamine_py/kernels/contact.py``) -- or, to show that the comparison is two-sided, of a NumPy
 reference -- by replacing one exact piece of source text.  The tool applies them one at a time,
-runs ``pytest -x -q tests/test_kernel_twins.py`` (numba recompiles the mutated module: its cache
-is keyed on the source file's time stamp), always restores the file (also on an error or
-Ctrl-C), and prints a table: the mutation and the test that caught it, or SURVIVED.
+runs ``pytest -x -q tests/test_kernel_twins.py tests/test_solid_lanes.py`` (the second: the
+solid kernel's blocks of several ``LANES`` elements and a remainder; numba recompiles the
+mutated module: its cache is keyed on the source file's time stamp), always restores the file
+(also on an error or Ctrl-C), and prints a table: the mutation and the test that caught it, or
+SURVIVED.
 
 Every mutation must be caught.  A control (``equivalent`` set) changes the code but not what it
 computes; it must survive, which shows that a survivor would be reported.
@@ -39,6 +41,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TEST = "tests/test_kernel_twins.py"
+#: the solid kernel's blocks of several LANES elements and a remainder, run after TEST
+LANES_TEST = "tests/test_solid_lanes.py"
 SOLID = "lagamine_py/kernels/solid.py"
 CONTACT = "lagamine_py/kernels/contact.py"
 
@@ -111,34 +115,33 @@ MUTATIONS = [
     M("solid: det F_old <= 0 (start of increment) ignored", SOLID,
       "bad = bad_old[e] != 0", "bad = False"),
     M("solid: F33 <= 0 (r <= 0) not checked", SOLID,
-      "                bad |= (det <= 0.0) or (F33[q] <= 0.0)\n            if bad:",
-      "                bad |= (det <= 0.0)\n            if bad:"),
+      "bad |= (det <= 0.0) or (Fq[o + 4 * _L] <= 0.0)", "bad |= (det <= 0.0)"),
     M("solid: return mapping failure not flagged", SOLID,
       "flags[e] = RETURN_MAP_FAILED", "flags[e] = OK"),
     M("solid: axisymmetric hoop strain dropped (small strain)", SOLID,
-      "hh[a] = Nq[q, a] / R0[e, q] if axisym else 0.0", "hh[a] = 0.0"),
+      "g[2 * _L + l] = na / v[_R0 + l] if axisym else 0.0", "g[2 * _L + l] = 0.0"),
     M("solid: hoop row dropped under NLGEOM", SOLID,
-      "hh[a] = Nq[q, a] / r if axisym else 0.0", "hh[a] = 0.0"),
+      "g[2 * _L + l] = na / Fp[5 * _L + l] if axisym else 0.0", "g[2 * _L + l] = 0.0"),
     M("solid: hoop stress dropped from the force", SOLID,
-      "f[2 * a] += dx[a, 0] * t0 + hh[a] * t2 + dx[a, 1] * t3",
-      "f[2 * a] += dx[a, 0] * t0 + dx[a, 1] * t3"),
+      "fa[l] += x0 * t0 + h * t2 + x1 * t3", "fa[l] += x0 * t0 + x1 * t3"),
     M("solid: F33 = 1 in axisymmetry", SOLID,
+      "Fp[4 * _L + l] = Fp[5 * _L + l] / R0[el[l], q]", "Fp[4 * _L + l] = 1.0"),
+    M("start: F33_old = 1 in axisymmetry", SOLID,
       "F33[q] = r[q] / R0[e, q]", "F33[q] = 1.0"),
     M("solid: b33 = f33 b33_n (square dropped)", SOLID,
-      "b33 = f33 ** 2 * bn33", "b33 = f33 * bn33"),
+      "= f33 ** 2 * bn33", "= f33 * bn33"),
     M("solid: relative f33 without F33_old", SOLID,
-      "f33 = F33[q] / old[e, q, 4]", "f33 = F33[q]"),
+      "f33 = Fp[4 * _L + l] / v[_OLD + 4 * _L + l]", "f33 = Fp[4 * _L + l]"),
     M("solid: NLGEOM material tangent's hoop row dropped", SOLID,
-      "M[2, d] = hh[b] if k == 0 else 0.0", "M[2, d] = 0.0"),
+      "m[2 * _L + l] = g[2 * _L + l]", "m[2 * _L + l] = 0.0"),
     M("solid: Cauchy stress with J = det of the in-plane F", SOLID,
-      "J = det2 * F33[q]", "J = det2"),
+      "J = det2 * Fp[4 * _L + l]", "J = det2"),
     M("solid: geometric tangent dropped", SOLID,
-      "wt00, wt11, wt01 = (t0, t1, t3) if geometric else (0.0, 0.0, 0.0)",
-      "wt00, wt11, wt01 = (0.0, 0.0, 0.0)"),
+      "wt00, wt11, wt01 = t0, t1, t3", "wt00, wt11, wt01 = 0.0, 0.0, 0.0"),
     M("solid: axisymmetric geometric tangent tau33 / r^2 dropped", SOLID,
-      "cax = t2 / (r * r) if geometric and axisym else 0.0", "cax = 0.0"),
+      "cax = t2 / (r * r)", "cax = 0.0"),
     M("solid: 2x2-rule weights all taken from the first point", SOLID,
-      "w = w0[e, q]", "w = w0[e, q] if nq != 4 else w0[e, 0]"),
+      "v[_W + l] = w0[el[l], q]", "v[_W + l] = w0[el[l], q] if nq != 4 else w0[el[l], 0]"),
     M("solid: Daleckii-Krein divided difference without 1/x", SOLID,
       "ratio = math.atanh(_nmin(xr, 1 - 1e-16)) / xr", "ratio = math.atanh(_nmin(xr, 1 - 1e-16))"),
     M("solid: Daleckii-Krein equal-stretch limit wrong", SOLID,
@@ -146,11 +149,25 @@ MUTATIONS = [
     M("solid: eigenvector angle's sign", SOLID,
       "return m + rho, m - rho, h / rho, c / rho", "return m + rho, m - rho, h / rho, -c / rho"),
     M("control: tangent scattered transposed", SOLID,
-      "data[pos[e, d, d2]] += Ke[d, d2]", "data[pos[e, d2, d]] += Ke[d, d2]",
+      "data[pos[e, d, d2]] += Ke[k]", "data[pos[e, d2, d]] += Ke[k]",
       equivalent="every element tangent of these laws is symmetric (Hencky hyperelasticity, "
                  "J2's associative radial return: the derivative of a potential's gradient)"),
     M("solid: global force overwritten, not added", SOLID,
-      "f_out[dofs[e, d]] += f[d]", "f_out[dofs[e, d]] = f[d]"),
+      "f_out[dofs[e, d]] += fl[d * _L + l]", "f_out[dofs[e, d]] = fl[d * _L + l]"),
+    # -- kernels/solid.py: the blocks of LANES elements (tests/test_solid_lanes.py: groups of
+    # several blocks and a remainder) -------------------------------------------------------
+    M("lanes: every block reads the first block's elements", SOLID,
+      "el[l] = e0 + min(l, n - 1)", "el[l] = min(l, n - 1)"),
+    M("lanes: the spare lanes of the remainder block scattered", SOLID,
+      "    for l in range(n):\n        e = el[l]\n        if flags[e] == BAD_DET_F:\n"
+      "            continue\n        for d in range(nd):",
+      "    for l in range(_L):\n        e = el[l]\n        if flags[e] == BAD_DET_F:\n"
+      "            continue\n        for d in range(nd):"),
+    M("lanes: the law run in a BAD_DET_F lane", SOLID,
+      "        if flags[e] == BAD_DET_F:\n            continue\n        # 1/2 ln b",
+      "        # 1/2 ln b"),
+    M("lanes: a lane's element force from the next lane", SOLID,
+      "fe[e, d] = fl[d * _L + l]", "fe[e, d] = fl[d * _L + min(l + 1, n - 1)]"),
     M("start: F_old^-1 off-diagonal sign", SOLID,
       "old[e, q, 0], old[e, q, 1] = F[q, 1, 1] * s, -F[q, 0, 1] * s",
       "old[e, q, 0], old[e, q, 1] = F[q, 1, 1] * s, F[q, 0, 1] * s"),
@@ -457,7 +474,8 @@ class Mutated:
 
 def run_tests(env: dict, timeout: float) -> tuple[str, str]:
     """``("passed" | "failed" | "timeout" | "invalid", what failed)``."""
-    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-rf", "-p", "no:cacheprovider", TEST]
+    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-rf", "-p", "no:cacheprovider", TEST,
+           LANES_TEST]
     try:
         out = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True,
                              timeout=timeout)
@@ -471,7 +489,7 @@ def run_tests(env: dict, timeout: float) -> tuple[str, str]:
     failed = [line for line in out.stdout.splitlines() if line.startswith(("FAILED", "ERROR"))]
     if not failed:
         return "failed", (out.stdout + out.stderr).strip().splitlines()[-1][:300]
-    line = re.sub(r"^(FAILED|ERROR) tests/test_kernel_twins.py::", "", failed[0])
+    line = re.sub(r"^(FAILED|ERROR) tests/test_(kernel_twins|solid_lanes).py::", "", failed[0])
     return "failed", line[:300]
 
 

@@ -1,4 +1,4 @@
-"""Numba kernels of the solid groups: element computation and scatter fused, element by element.
+"""Numba kernels of the solid groups: element computation and scatter fused, in blocks of elements.
 
 The optional fast path of :class:`~lagamine_py.elements.solid.SolidGroup` (``pip install
 lagamine_py[fast]``).  For one group it computes, element by element and Gauss point by Gauss
@@ -11,6 +11,19 @@ is ever formed.  The NumPy path stays the reference; results agree to round-off.
 Array axes as in :mod:`lagamine_py.elements.solid`: ``e`` element, ``q`` Gauss point, ``a``/``b``
 node, ``i``/``j``/``k``/``n`` spatial component, ``s``/``t`` 4-vector component
 [11, 22, 33, 12], ``d`` element DOF ``2 a + i``.
+
+SIMD across elements: the element loop takes ``LANES`` (16) elements at a time, every per-point
+quantity held as a row of 16 values (flat work arrays, the lane axis last), and its arithmetic
+loops run over the lanes, which LLVM turns into packed instructions (ymm ``vmulpd``/``vaddpd``;
+no ``vfmadd``: without fastmath LLVM contracts nothing).  Each lane does the scalar arithmetic
+of one element in the order the element-by-element kernel did, so every output is that
+kernel's bit for bit (``tools/kernel_calls.py --check``).  Scalar, lane by lane: the law (its
+branches, logarithms and Newton iterations), the logarithms of the Hencky strain and the
+Daleckii-Krein atanh, the gathers and the scatter.  Sixteen lanes, not 8: LLVM's loop vectoriser
+refuses a loop of fewer than 16 iterations that needs run-time alias checks (the work arrays
+may alias as far as it knows).  The last block's spare lanes repeat its last element and are
+never read.  The start of the increment (:func:`_start_kernel`, once per increment) stays
+element by element.
 
 One compiled specialisation serves every element type, law and kinematics (they are run-time
 arguments), so the first call compiles once; ``cache=True`` keeps the machine code on disk.
@@ -38,21 +51,10 @@ __all__ = ["scratch_arrays", "solid_group", "start_group"]
 _JIT = dict(cache=True, fastmath=False, error_model="numpy", nogil=True, _nrt=False)
 
 
-def scratch_arrays(nen: int, nq: int) -> tuple:
-    """Work arrays of the kernels (they allocate nothing themselves, see ``_JIT``): nodal
-    displacements new/old (a, 2), F (q, 2, 2), F33 (q,), radius (q,), gradients (a, 2), hoop
-    row (a,), element force (d,), element tangent (d, d), trial strain, stress, D (4, 4),
-    elastic strain, M (4, d)."""
-    nd = 2 * nen
-    return (np.empty((nen, 2)), np.empty((nen, 2)), np.empty((nq, 2, 2)), np.empty(nq),
-            np.empty(nq), np.empty((nen, 2)), np.empty(nen), np.empty(nd), np.zeros((nd, nd)),
-            np.empty(4), np.empty(4), np.empty((4, 4)), np.empty(4), np.empty((4, nd)))
-
-
 # --------------------------------------------------------------------------------------------
 # scalar helpers (min and max with NumPy's NaN semantics: lagamine_py.kernels.scalars)
 
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def _sym_eig2(a, b, c):
     """Eigenvalues (l0 >= l1) of [[a, c], [c, b]] and ``cos 2t``, ``sin 2t`` of the angle t of
     its first eigenvector (``sym_eig2``: t = atan2(c, (a - b)/2) / 2, t = 0 for a multiple
@@ -214,7 +216,54 @@ def _law_update(kind, lp, Del, eps, peeq_n, stress, D, eps_e):
 
 
 # --------------------------------------------------------------------------------------------
-# the element loop
+# the element loop: LANES elements side by side
+
+#: elements computed side by side.  Every per-point quantity of a block is a row of LANES
+#: values (the element of the block is the last, contiguous axis), and the arithmetic loops
+#: run over the lanes, which LLVM turns into packed instructions; each lane does the scalar
+#: arithmetic of one element in the same order, so every answer is the element-by-element one
+#: bit for bit (``fastmath=False``: no reassociation, no contraction into FMA).  The law (its
+#: branches and logarithms) and the scatter stay scalar, lane by lane.
+LANES = 16
+
+
+def _rows(*counts: int) -> list[int]:
+    """Offsets in the lane array of consecutive groups of ``counts`` rows, and its length."""
+    out, at = [], 0
+    for c in counts:
+        out.append(at * LANES)
+        at += c
+    return out + [at * LANES]
+
+
+# the lane array ``v``: rows at constant offsets, so LLVM sees that the rows a loop reads and
+# writes never overlap and vectorises it without run-time alias checks.  _W weight; _OLD the
+# start of the increment (9, as start_kernel's ``old``); _B trial b_e 00, 01, 10, 11, 33;
+# _EIG its lam0, lam1, cos 2t, sin 2t; _FI F^-1 00, 01, 10, 11; _TAU the law's stress (tau
+# under NLGEOM); _T w tau; _D the law's D (4 s + t); _C the Daleckii-Krein c0, c1, c2; _R0 the
+# reference radius; _SUM small strain's B u_new (4) and B u_old (4); _COL the w D M columns of
+# one node (and the geometric parts) that the node-pair loop reads
+(_W, _OLD, _B, _EIG, _FI, _TAU, _T, _D, _C, _R0, _SUM, _COL, _NV) = _rows(
+    1, 9, 5, 4, 4, 4, 4, 16, 3, 1, 8, 11)
+_L = LANES
+
+
+def scratch_arrays(nen: int, nq: int) -> tuple:
+    """Work arrays of the kernels (they allocate nothing themselves, see ``_JIT``).
+
+    Of :func:`_start_kernel`: nodal displacements (a, 2), F (q, 2, 2), F33 (q,), radius (q,).
+    Of :func:`_solid_kernel`, flat, lane axis last (``LANES``): the block's elements (l,); the
+    lane array (rows ``_W`` ...); U: u_new then u_old (2 a + i); X: dN/dX (q, a, j); Fq: F00,
+    F01, F10, F11, F33, r (q, 6); G: dN/dx and the hoop row (a, 3); Ml: M (d, s); fl: element
+    force (d,); Ke: element tangent by node pair (b, a, 4: [2a, 2b], [2a, 2b+1], [2a+1, 2b],
+    [2a+1, 2b+1]).  Of the law, one point: trial strain, stress, D (4, 4), elastic strain."""
+    nd = 2 * nen
+    return (np.empty((nen, 2)), np.empty((nq, 2, 2)), np.empty(nq), np.empty(nq),
+            np.zeros(_L, np.int64), np.zeros(_NV), np.zeros(2 * nd * _L),
+            np.zeros(nq * nd * _L), np.zeros(nq * 6 * _L), np.zeros(3 * nen * _L),
+            np.zeros(4 * nd * _L), np.zeros(nd * _L), np.zeros(nd * nd * _L),
+            np.empty(4), np.empty(4), np.empty((4, 4)), np.empty(4))
+
 
 @njit(**_JIT)
 def _solid_kernel(nlgeom, tangent, axisym, kind, lp, Del, conn, u_new, u_old, Nq, dNdX, R0, w0,
@@ -230,52 +279,419 @@ def _solid_kernel(nlgeom, tangent, axisym, kind, lp, Del, conn, u_new, u_old, Nq
     forces ``fe`` (e, d), added into ``f_out`` (ndof,); the tangent added into ``data`` (nnz,)
     when ``tangent``; ``flags`` (e,) OK / BAD_DET_F (element skipped) / RETURN_MAP_FAILED.
     ``scratch``: the work arrays of :func:`scratch_arrays`.
+
+    Blocks of ``LANES`` elements; the last block's spare lanes repeat its last element, and
+    are computed (the vector loops) but never read, nor is any lane of a BAD_DET_F element.
     """
     ne, nen = conn.shape
     nq = Nq.shape[0]
     nd = 2 * nen
-    ue, uo, F, F33, rq, dx, hh, f, Ke, eps, stress, D, eps_e, M = scratch
-    for e in range(ne):
-        flags[e] = OK
+    _, _, _, _, el, v, U, X, Fq, G, Ml, fl, Ke, eps, stress, D, eps_e = scratch
+    for e0 in range(0, ne, _L):
+        n = min(_L, ne - e0)
+        for l in range(_L):
+            el[l] = e0 + min(l, n - 1)
+        for l in range(n):
+            flags[e0 + l] = OK
+        _gather(el, conn, u_new, u_old, dNdX, nen, nq, U, X)
+        if nlgeom:
+            for q in range(nq):
+                _block_deformation(U, X, Nq, R0, el, q, nen, axisym, Fq)
+            for l in range(n):
+                e = e0 + l
+                bad = bad_old[e] != 0
+                for q in range(nq):
+                    o = q * 6 * _L + l
+                    det = Fq[o] * Fq[o + 3 * _L] - Fq[o + _L] * Fq[o + 2 * _L]
+                    bad |= (det <= 0.0) or (Fq[o + 4 * _L] <= 0.0)
+                if bad:
+                    flags[e] = BAD_DET_F
+        for i in range(nd * _L):
+            fl[i] = 0.0
+        if tangent:
+            for i in range(nd * nd * _L):
+                Ke[i] = 0.0
+        for q in range(nq):
+            for l in range(_L):
+                v[_W + l] = w0[el[l], q]
+            if nlgeom:
+                _large_strain_block(n, el, q, nen, Fq, X, old, Nq, axisym, kind, lp, Del,
+                                    eps_e_n, peeq_n, eps_e_out, peeq_out, stress_out, tangent,
+                                    flags, v, G, Ml, fl, Ke, eps, stress, D, eps_e)
+            else:
+                _small_strain_block(n, el, q, nen, U, X, Fq, R0, Nq, axisym, kind, lp, Del,
+                                    eps_e_n, peeq_n, eps_e_out, peeq_out, stress_out, tangent,
+                                    flags, v, G, Ml, fl, Ke, eps, stress, D, eps_e)
+        _scatter(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, dofs)
+
+
+@njit(inline="always", **_JIT)
+def _view(a, row, rows):
+    """Rows ``row`` to ``row + rows`` of a flat lane array: inside a loop over the lanes the
+    index is then a constant plus the lane, which LLVM knows is not negative (no wrap-around
+    select), so the access is a unit-stride one it vectorises."""
+    return a[row * _L:(row + rows) * _L]
+
+
+@njit(inline="always", **_JIT)
+def _gather(el, conn, u_new, u_old, dNdX, nen, nq, U, X):
+    """The block's nodal displacements (U: u_new then u_old) and dN/dX, lane axis last."""
+    nd = 2 * nen
+    for l in range(_L):
+        e = el[l]
         for a in range(nen):
             na = conn[e, a]
-            ue[a, 0], ue[a, 1] = u_new[na, 0], u_new[na, 1]
-            uo[a, 0], uo[a, 1] = u_old[na, 0], u_old[na, 1]
-        if nlgeom:
-            bad = bad_old[e] != 0
-            for q in range(nq):
-                _deformation(ue, dNdX, Nq, R0, e, q, axisym, F, F33, rq)
-                det = F[q, 0, 0] * F[q, 1, 1] - F[q, 0, 1] * F[q, 1, 0]
-                bad |= (det <= 0.0) or (F33[q] <= 0.0)
-            if bad:
-                flags[e] = BAD_DET_F
-                continue
-        for d in range(nd):
-            f[d] = 0.0
-        if tangent:
-            for d in range(nd):
-                for d2 in range(nd):
-                    Ke[d, d2] = 0.0
+            U[2 * a * _L + l], U[(2 * a + 1) * _L + l] = u_new[na, 0], u_new[na, 1]
+            U[(nd + 2 * a) * _L + l], U[(nd + 2 * a + 1) * _L + l] = u_old[na, 0], u_old[na, 1]
         for q in range(nq):
-            w = w0[e, q]
-            if nlgeom:
-                ok = _large_strain_point(e, q, F, F33, old, rq, dNdX, Nq, axisym, kind,
-                                         lp, Del, eps_e_n, peeq_n, eps_e_out, peeq_out,
-                                         stress_out, w, tangent, f, Ke, dx, hh, eps, stress,
-                                         D, eps_e, M)
+            for a in range(nen):
+                for j in range(2):
+                    X[((q * nen + a) * 2 + j) * _L + l] = dNdX[e, q, a, j]
+
+
+@njit(inline="always", **_JIT)
+def _block_deformation(U, X, Nq, R0, el, q, nen, axisym, Fq):
+    """In-plane F, F33 and the current radius of point q of every lane (``_deformation``)."""
+    Fp = _view(Fq, q * 6, 6)
+    for i in range(4 * _L):
+        Fp[i] = 0.0
+    for a in range(nen):                # the four sums over a, each in the order of a
+        u, x = _view(U, 2 * a, 2), _view(X, (q * nen + a) * 2, 2)
+        for l in range(_L):
+            Fp[l] += u[l] * x[l]
+            Fp[_L + l] += u[l] * x[_L + l]
+            Fp[2 * _L + l] += u[_L + l] * x[l]
+            Fp[3 * _L + l] += u[_L + l] * x[_L + l]
+    for l in range(_L):
+        Fp[l] = Fp[l] + 1.0
+        Fp[_L + l] = Fp[_L + l] + 0.0
+        Fp[2 * _L + l] = Fp[2 * _L + l] + 0.0
+        Fp[3 * _L + l] = Fp[3 * _L + l] + 1.0
+    if axisym:
+        for l in range(_L):
+            Fp[5 * _L + l] = 0.0
+        for a in range(nen):
+            u, na = _view(U, 2 * a, 1), Nq[q, a]
+            for l in range(_L):
+                Fp[5 * _L + l] += na * u[l]
+        for l in range(_L):
+            Fp[5 * _L + l] = R0[el[l], q] + Fp[5 * _L + l]
+            Fp[4 * _L + l] = Fp[5 * _L + l] / R0[el[l], q]
+    else:
+        for l in range(_L):
+            Fp[5 * _L + l] = R0[el[l], q]
+            Fp[4 * _L + l] = 1.0
+
+
+@njit(inline="always", **_JIT)
+def _lane_law(el, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, flags,
+              stress, D, eps_e, v, l, tangent):
+    """The law at one lane's point (the trial strain in ``eps``): the new eps_e and peeq to the
+    output state, a failure to ``flags``, stress (and D for a ``tangent``) to the lane rows."""
+    e = el[l]
+    ok = _point_law(e, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, stress, D,
+                    eps_e)
+    if not ok:
+        flags[e] = RETURN_MAP_FAILED
+    for s in range(4):
+        v[_TAU + s * _L + l] = stress[s]
+    if tangent:
+        for s in range(4):
+            for t in range(4):
+                v[_D + (4 * s + t) * _L + l] = D[s, t]
+
+
+# The three per-point block functions are called, not inlined: inlined (twice for
+# _force_and_tangent), the kernel took 22 s of CPU and 610 MB to compile instead of 11 s and
+# 250 MB, for no speed (one call per point and block of LANES elements).
+
+@njit(**_JIT)
+def _small_strain_block(n, el, q, nen, U, X, Fq, R0, Nq, axisym, kind, lp, Del, eps_e_n, peeq_n,
+                        eps_e_out, peeq_out, stress_out, tangent, flags, v, G, Ml, fl, Ke, eps,
+                        stress, D, eps_e):
+    """Point q of ``_small_strain`` in every lane: trial ``B u_new - B u_old + eps_e_n``, the
+    law, f += w B^T sig and Ke += w B^T D B."""
+    nd = 2 * nen
+    for l in range(_L):
+        v[_R0 + l] = R0[el[l], q]
+    for a in range(nen):
+        x, g, na = _view(X, (q * nen + a) * 2, 2), _view(G, 3 * a, 3), Nq[q, a]
+        for l in range(_L):
+            g[l], g[_L + l] = x[l], x[_L + l]
+            g[2 * _L + l] = na / v[_R0 + l] if axisym else 0.0
+    for i in range(8 * _L):
+        v[_SUM + i] = 0.0
+    for a in range(nen):
+        g, un, uo = _view(G, 3 * a, 3), _view(U, 2 * a, 2), _view(U, nd + 2 * a, 2)
+        for l in range(_L):
+            x0, x1, h = g[l], g[_L + l], g[2 * _L + l]
+            n0, n1 = un[l], un[_L + l]
+            p0, p1 = uo[l], uo[_L + l]
+            v[_SUM + l] += x0 * n0
+            v[_SUM + _L + l] += x1 * n1
+            v[_SUM + 2 * _L + l] += h * n0
+            v[_SUM + 3 * _L + l] += x1 * n0 + x0 * n1
+            v[_SUM + 4 * _L + l] += x0 * p0
+            v[_SUM + 5 * _L + l] += x1 * p1
+            v[_SUM + 6 * _L + l] += h * p0
+            v[_SUM + 7 * _L + l] += x1 * p0 + x0 * p1
+    for l in range(n):
+        e = el[l]
+        for s in range(4):
+            eps[s] = (v[_SUM + s * _L + l] - v[_SUM + (4 + s) * _L + l]) + eps_e_n[e, q, s]
+        _lane_law(el, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, flags,
+                  stress, D, eps_e, v, l, tangent)
+        for s in range(4):
+            stress_out[e, q, s] = stress[s]
+    if tangent:                         # M = B (d, s)
+        for a in range(nen):
+            g, m = _view(G, 3 * a, 3), _view(Ml, 8 * a, 8)
+            for l in range(_L):
+                x0, x1 = g[l], g[_L + l]
+                m[l], m[_L + l], m[2 * _L + l], m[3 * _L + l] = x0, 0.0, g[2 * _L + l], x1
+                m[4 * _L + l], m[5 * _L + l], m[6 * _L + l], m[7 * _L + l] = 0.0, x1, 0.0, x0
+    _force_and_tangent(nen, q, Nq, G, Ml, v, _view(Fq, 0, 1), tangent, False, axisym, fl, Ke)
+
+
+@njit(**_JIT)
+def _large_strain_block(n, el, q, nen, Fq, X, old, Nq, axisym, kind, lp, Del, eps_e_n, peeq_n,
+                        eps_e_out, peeq_out, stress_out, tangent, flags, v, G, Ml, fl, Ke, eps,
+                        tau, D, eps_e):
+    """Point q of ``_large_strain`` in every lane (det F already checked): trial b_e, its
+    Hencky strain and Daleckii-Krein derivative, the law (Kirchhoff tau), f += w G^T tau and
+    Ke += w G^T D M + the geometric part."""
+    Fp = _view(Fq, q * 6, 6)
+    for l in range(_L):
+        e = el[l]
+        for k in range(9):
+            v[_OLD + k * _L + l] = old[e, q, k]
+    for l in range(_L):
+        # start of the increment (start_kernel): F_old^-1, F33_old, b_e_n = exp(2 eps_e_n)
+        i00, i01 = v[_OLD + l], v[_OLD + _L + l]
+        i10, i11 = v[_OLD + 2 * _L + l], v[_OLD + 3 * _L + l]
+        bn00, bn01 = v[_OLD + 5 * _L + l], v[_OLD + 6 * _L + l]
+        bn11, bn33 = v[_OLD + 7 * _L + l], v[_OLD + 8 * _L + l]
+        # relative deformation f = F F_old^-1 and the trial b = f b_n f^T
+        F00, F01, F10, F11 = Fp[l], Fp[_L + l], Fp[2 * _L + l], Fp[3 * _L + l]
+        f00 = F00 * i00 + F01 * i10
+        f01 = F00 * i01 + F01 * i11
+        f10 = F10 * i00 + F11 * i10
+        f11 = F10 * i01 + F11 * i11
+        g00, g01 = f00 * bn00 + f01 * bn01, f00 * bn01 + f01 * bn11          # f b_n
+        g10, g11 = f10 * bn00 + f11 * bn01, f10 * bn01 + f11 * bn11
+        b00 = g00 * f00 + g01 * f01
+        b01 = g00 * f10 + g01 * f11
+        b10 = g10 * f00 + g11 * f01
+        b11 = g10 * f10 + g11 * f11
+        f33 = Fp[4 * _L + l] / v[_OLD + 4 * _L + l]
+        v[_B + l], v[_B + _L + l], v[_B + 2 * _L + l], v[_B + 3 * _L + l] = b00, b01, b10, b11
+        v[_B + 4 * _L + l] = f33 ** 2 * bn33
+        lam0, lam1, cs, sn = _sym_eig2(b00, b11, 0.5 * (b01 + b10))
+        v[_EIG + l], v[_EIG + _L + l], v[_EIG + 2 * _L + l], v[_EIG + 3 * _L + l] = \
+            lam0, lam1, cs, sn
+    for l in range(n):
+        e = el[l]
+        if flags[e] == BAD_DET_F:
+            continue
+        # 1/2 ln b and the eigenprojections
+        lam0, lam1 = v[_EIG + l], v[_EIG + _L + l]
+        cs, sn = v[_EIG + 2 * _L + l], v[_EIG + 3 * _L + l]
+        P0_00, P0_01, P0_11 = 0.5 * (1.0 + cs), 0.5 * sn, 0.5 * (1.0 - cs)
+        P1_00, P1_01, P1_11 = P0_11, -P0_01, P0_00
+        hl0, hl1 = 0.5 * math.log(lam0), 0.5 * math.log(lam1)
+        E00 = hl0 * P0_00 + hl1 * P1_00
+        E11 = hl0 * P0_11 + hl1 * P1_11
+        E01 = hl0 * P0_01 + hl1 * P1_01
+        eps[0], eps[1], eps[2], eps[3] = E00, E11, 0.5 * math.log(v[_B + 4 * _L + l]), 2.0 * E01
+        _lane_law(el, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, flags,
+                  tau, D, eps_e, v, l, tangent)
+        F00, F01, F10, F11 = Fp[l], Fp[_L + l], Fp[2 * _L + l], Fp[3 * _L + l]
+        det2 = F00 * F11 - F01 * F10
+        J = det2 * Fp[4 * _L + l]
+        for s in range(4):
+            stress_out[e, q, s] = tau[s] / J
+        if tangent:
+            # material part: d eps_trial = C : (l b + b l^T), l = grad_x du; C from
+            # Daleckii-Krein C = c0 P0 x P0 + c1 P1 x P1 + c2 S x S, S = v0 v1^T + v1 v0^T
+            m = 0.5 * (lam0 + lam1)
+            xr = 0.5 * (lam0 - lam1) / m
+            if xr < 1e-6:
+                ratio = 1.0 + xr * xr / 3.0
             else:
-                ok = _small_strain_point(e, q, ue, uo, dNdX, Nq, R0, axisym, kind, lp, Del,
-                                         eps_e_n, peeq_n, eps_e_out, peeq_out, stress_out, w,
-                                         tangent, f, Ke, dx, hh, eps, stress, D, eps_e, M)
-            if not ok:
-                flags[e] = RETURN_MAP_FAILED
+                ratio = math.atanh(_nmin(xr, 1 - 1e-16)) / xr
+            v[_C + l], v[_C + _L + l], v[_C + 2 * _L + l] = 0.5 / lam0, 0.5 / lam1, 0.25 * ratio / m
+    # spatial gradients dN/dx = dN/dX F^-1 and the hoop row with the current radius
+    for l in range(_L):
+        F00, F01, F10, F11 = Fp[l], Fp[_L + l], Fp[2 * _L + l], Fp[3 * _L + l]
+        det2 = F00 * F11 - F01 * F10
+        s_inv = 1.0 / (1.0 if det2 == 0.0 else det2)
+        v[_FI + l], v[_FI + _L + l] = F11 * s_inv, -F01 * s_inv
+        v[_FI + 2 * _L + l], v[_FI + 3 * _L + l] = -F10 * s_inv, F00 * s_inv
+    for a in range(nen):
+        x, g, na = _view(X, (q * nen + a) * 2, 2), _view(G, 3 * a, 3), Nq[q, a]
+        for l in range(_L):
+            X0, X1 = x[l], x[_L + l]
+            g[l] = X0 * v[_FI + l] + X1 * v[_FI + 2 * _L + l]
+            g[_L + l] = X0 * v[_FI + _L + l] + X1 * v[_FI + 3 * _L + l]
+            g[2 * _L + l] = na / Fp[5 * _L + l] if axisym else 0.0
+    if tangent:
+        for b in range(nen):
+            g, m = _view(G, 3 * b, 3), _view(Ml, 8 * b, 8)
+            for l in range(_L):
+                cs, sn = v[_EIG + 2 * _L + l], v[_EIG + 3 * _L + l]
+                P0_00, P0_01, P0_11 = 0.5 * (1.0 + cs), 0.5 * sn, 0.5 * (1.0 - cs)
+                P1_00, P1_01, P1_11 = P0_11, -P0_01, P0_00
+                S_00, S_01, S_11 = -sn, cs, sn
+                x0, x1 = g[l], g[_L + l]
+                h0 = x0 * v[_B + l] + x1 * v[_B + 2 * _L + l]          # h_bn = dN_b/dx_m b_mn
+                h1 = x0 * v[_B + _L + l] + x1 * v[_B + 3 * _L + l]
+                c0, c1, c2 = 2.0 * v[_C + l], 2.0 * v[_C + _L + l], 2.0 * v[_C + 2 * _L + l]
+                # (P h_b)_k = sum_n P_kn h_bn, then dE_ijbk = 2 (c0 P0_ij (P0 h)_k + ...);
+                # the DOFs k = 0 and 1 of node b written out (one lane loop per node)
+                u0 = c0 * (P0_00 * h0 + P0_01 * h1)
+                u1 = c1 * (P1_00 * h0 + P1_01 * h1)
+                u2 = c2 * (S_00 * h0 + S_01 * h1)
+                m[l] = u0 * P0_00 + u1 * P1_00 + u2 * S_00
+                m[_L + l] = u0 * P0_11 + u1 * P1_11 + u2 * S_11
+                m[3 * _L + l] = 2.0 * (u0 * P0_01 + u1 * P1_01 + u2 * S_01)
+                m[2 * _L + l] = g[2 * _L + l]                       # d eps33 = du_r / r
+                u0 = c0 * (P0_01 * h0 + P0_11 * h1)
+                u1 = c1 * (P1_01 * h0 + P1_11 * h1)
+                u2 = c2 * (S_01 * h0 + S_11 * h1)
+                m[4 * _L + l] = u0 * P0_00 + u1 * P1_00 + u2 * S_00
+                m[5 * _L + l] = u0 * P0_11 + u1 * P1_11 + u2 * S_11
+                m[7 * _L + l] = 2.0 * (u0 * P0_01 + u1 * P1_01 + u2 * S_01)
+                m[6 * _L + l] = 0.0
+    _force_and_tangent(nen, q, Nq, G, Ml, v, _view(Fp, 5, 1), tangent, True, axisym, fl, Ke)
+
+
+@njit(**_JIT)
+def _force_and_tangent(nen, q, Nq, G, Ml, v, r_, tangent, geometric, axisym, fl, Ke):
+    """f += w G^T tau and Ke += w G^T D M (+ the geometric part when ``geometric``) in every
+    lane, with G the strain operator of gradients dx and hoop row hh (``G``, (a, 3)):
+    G_a = [[dx_a0, 0], [0, dx_a1], [hh_a, 0], [dx_a1, dx_a0]]; tau, D, w in the lane rows.
+
+    Geometric part (NLGEOM): ``Kg[a i, b k] = -w dN_a/dx_k (dN_b/dx_j tau_ji)``, and in
+    axisymmetry ``Kg[a 0, b 0] -= w tau_33 / r^2 N_a N_b`` (``Nq[q]`` the N_a of the point, r
+    the lanes' current radius ``r_``).  Node b's w D M columns go to the rows ``_COL``, then
+    :func:`_node_pairs` adds them up."""
+    for l in range(_L):
+        w = v[_W + l]
+        v[_T + l], v[_T + _L + l] = w * v[_TAU + l], w * v[_TAU + _L + l]
+        v[_T + 2 * _L + l], v[_T + 3 * _L + l] = w * v[_TAU + 2 * _L + l], w * v[_TAU + 3 * _L + l]
+    for a in range(nen):
+        g, fa = _view(G, 3 * a, 3), _view(fl, 2 * a, 2)
+        for l in range(_L):
+            x0, x1, h = g[l], g[_L + l], g[2 * _L + l]
+            t0, t1, t2, t3 = v[_T + l], v[_T + _L + l], v[_T + 2 * _L + l], v[_T + 3 * _L + l]
+            fa[l] += x0 * t0 + h * t2 + x1 * t3
+            fa[_L + l] += x1 * t1 + x0 * t3
+    if not tangent:
+        return
+    # Exact zeros are left out of the sums: M[2, 2b+1] (a radial stretch only from u_r), in
+    # plane strain M[2, :] (no hoop row) and p2, q2 (unread), in small strain the geometric
+    # terms.  Each dropped term is a +-0.0 added in place, so a sum it left out differs at most
+    # by the sign of a zero, which Ke does not keep (its sums start from +0.0: +0.0 + -0.0 is
+    # +0.0); a non-finite D is a failure (the law's ok) before Ke is read.
+    for b in range(nen):
+        g, m = _view(G, 3 * b, 3), _view(Ml, 8 * b, 8)
+        for l in range(_L):
+            w = v[_W + l]
+            t0, t1, t2, t3 = v[_T + l], v[_T + _L + l], v[_T + 2 * _L + l], v[_T + 3 * _L + l]
+            m00, m10, m30 = m[l], m[_L + l], m[3 * _L + l]
+            m01, m11, m31 = m[4 * _L + l], m[5 * _L + l], m[7 * _L + l]
+            D00, D01, D02, D03 = v[_D + l], v[_D + _L + l], v[_D + 2 * _L + l], v[_D + 3 * _L + l]
+            D10, D11, D12, D13 = (v[_D + 4 * _L + l], v[_D + 5 * _L + l], v[_D + 6 * _L + l],
+                                  v[_D + 7 * _L + l])
+            D20, D21, D22, D23 = (v[_D + 8 * _L + l], v[_D + 9 * _L + l], v[_D + 10 * _L + l],
+                                  v[_D + 11 * _L + l])
+            D30, D31, D32, D33 = (v[_D + 12 * _L + l], v[_D + 13 * _L + l], v[_D + 14 * _L + l],
+                                  v[_D + 15 * _L + l])
+            # columns of w D M for the two DOFs of node b
+            if axisym:
+                m20 = m[2 * _L + l]
+                p0 = w * (D00 * m00 + D01 * m10 + D02 * m20 + D03 * m30)
+                p1 = w * (D10 * m00 + D11 * m10 + D12 * m20 + D13 * m30)
+                p2 = w * (D20 * m00 + D21 * m10 + D22 * m20 + D23 * m30)
+                p3 = w * (D30 * m00 + D31 * m10 + D32 * m20 + D33 * m30)
+                q2 = w * (D20 * m01 + D21 * m11 + D23 * m31)
+            else:
+                p0 = w * (D00 * m00 + D01 * m10 + D03 * m30)
+                p1 = w * (D10 * m00 + D11 * m10 + D13 * m30)
+                p3 = w * (D30 * m00 + D31 * m10 + D33 * m30)
+                p2 = q2 = 0.0
+            q0 = w * (D00 * m01 + D01 * m11 + D03 * m31)
+            q1 = w * (D10 * m01 + D11 * m11 + D13 * m31)
+            q3 = w * (D30 * m01 + D31 * m11 + D33 * m31)
+            # material and geometric parts share their factors dN_a/dx_k; geometric: w dN_b/dx_j
+            # tau_ji (i = 0, 1) and the hoop term's w tau33 / r^2 N_b
+            if geometric:
+                wt00, wt11, wt01 = t0, t1, t3
+                x0, x1 = g[l], g[_L + l]
+                T0 = x0 * wt00 + x1 * wt01
+                T1 = x0 * wt01 + x1 * wt11
+                a00, a11, b11, b00 = p0 - T0, q3 - T0, p3 - T1, q1 - T1
+            else:
+                a00, a11, b11, b00 = p0, q3, p3, q1
+            if geometric and axisym:
+                r = r_[l]
+                cax = t2 / (r * r)
+            else:
+                cax = 0.0
+            v[_COL + l], v[_COL + _L + l], v[_COL + 2 * _L + l] = a00, p3, p2
+            v[_COL + 3 * _L + l], v[_COL + 4 * _L + l], v[_COL + 5 * _L + l] = \
+                cax * Nq[q, b], q0, a11
+            v[_COL + 6 * _L + l], v[_COL + 7 * _L + l], v[_COL + 8 * _L + l] = q2, b11, p1
+            v[_COL + 9 * _L + l], v[_COL + 10 * _L + l] = q3, b00
+        _node_pairs(nen, b, q, Nq, G, v, Ke, axisym)
+
+
+@njit(inline="always", **_JIT)
+def _node_pairs(nen, b, q, Nq, G, v, Ke, axisym):
+    """Ke[a, b] += G_a^T (the w D M columns of node b, rows ``_COL``), one lane loop per node
+    pair.  (The loop over a inside the lane loop, unrolled for Q8, was not vectorised by LLVM:
+    twice the scalar instructions, no gain.)"""
+    for a in range(nen):
+        g, k = _view(G, 3 * a, 3), _view(Ke, (b * nen + a) * 4, 4)
+        if axisym:
+            na = Nq[q, a]
+            for l in range(_L):
+                x0, x1, h = g[l], g[_L + l], g[2 * _L + l]
+                hb = v[_COL + 3 * _L + l]
+                k[l] += (x0 * v[_COL + l] + x1 * v[_COL + _L + l]
+                         + h * v[_COL + 2 * _L + l] - hb * na)
+                k[_L + l] += (x0 * v[_COL + 4 * _L + l] + x1 * v[_COL + 5 * _L + l]
+                              + h * v[_COL + 6 * _L + l])
+                k[2 * _L + l] += x0 * v[_COL + 7 * _L + l] + x1 * v[_COL + 8 * _L + l]
+                k[3 * _L + l] += x0 * v[_COL + 9 * _L + l] + x1 * v[_COL + 10 * _L + l]
+        else:
+            for l in range(_L):
+                x0, x1 = g[l], g[_L + l]
+                k[l] += x0 * v[_COL + l] + x1 * v[_COL + _L + l]
+                k[_L + l] += x0 * v[_COL + 4 * _L + l] + x1 * v[_COL + 5 * _L + l]
+                k[2 * _L + l] += x0 * v[_COL + 7 * _L + l] + x1 * v[_COL + 8 * _L + l]
+                k[3 * _L + l] += x0 * v[_COL + 9 * _L + l] + x1 * v[_COL + 10 * _L + l]
+
+
+@njit(inline="always", **_JIT)
+def _scatter(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, dofs):
+    """The block's element forces to ``fe`` and ``f_out`` and tangents to ``data``, element by
+    element in order (each entry's sum in the element-by-element order); a BAD_DET_F element
+    and the spare lanes add nothing."""
+    nd = 2 * nen
+    for l in range(n):
+        e = el[l]
+        if flags[e] == BAD_DET_F:
+            continue
         for d in range(nd):
-            fe[e, d] = f[d]
-            f_out[dofs[e, d]] += f[d]
+            fe[e, d] = fl[d * _L + l]
+            f_out[dofs[e, d]] += fl[d * _L + l]
         if tangent:
             for d in range(nd):
+                a, i = d // 2, d % 2
                 for d2 in range(nd):
-                    data[pos[e, d, d2]] += Ke[d, d2]
+                    k = ((d2 // 2 * nen + a) * 4 + 2 * i + d2 % 2) * _L + l
+                    data[pos[e, d, d2]] += Ke[k]
 
 
 @njit(**_JIT)
@@ -285,7 +701,7 @@ def _start_kernel(axisym, conn, u_old, Nq, dNdX, R0, eps_e_n, old, bad_old, scra
     in-plane (00, 01, 11) and 33; ``bad_old`` (e,) 1 where det F_old <= 0 or F33_old <= 0."""
     ne, nen = conn.shape
     nq = Nq.shape[0]
-    uo, F, F33, r = scratch[1], scratch[2], scratch[3], scratch[4]
+    uo, F, F33, r = scratch[0], scratch[1], scratch[2], scratch[3]
     for e in range(ne):
         for a in range(nen):
             uo[a, 0], uo[a, 1] = u_old[conn[e, a], 0], u_old[conn[e, a], 1]
@@ -337,194 +753,6 @@ def _point_law(e, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, s
     for s in range(4):
         eps_e_out[e, q, s] = eps_e[s]
     peeq_out[e, q] = peeq
-    return ok
-
-
-@njit(inline="always", **_JIT)
-def _force_and_tangent(nen, dx, hh, tau, D, M, w, tangent, f, Ke, geometric, axisym, Nq, q, r):
-    """f += w G^T tau and Ke += w G^T D M (+ the geometric part when ``geometric``), with G the
-    strain operator of gradients ``dx`` (a, 2) and hoop row ``hh`` (a,):
-    G_a = [[dx_a0, 0], [0, dx_a1], [hh_a, 0], [dx_a1, dx_a0]].
-
-    Geometric part (NLGEOM): ``Kg[a i, b k] = -w dN_a/dx_k (dN_b/dx_j tau_ji)``, and in
-    axisymmetry ``Kg[a 0, b 0] -= w tau_33 / r^2 N_a N_b`` (``Nq[q]`` the N_a of the point).
-    Node pair by node pair, the w D M columns of node b in scalars: no (4, d) temporaries."""
-    t0, t1, t2, t3 = w * tau[0], w * tau[1], w * tau[2], w * tau[3]
-    for a in range(nen):
-        f[2 * a] += dx[a, 0] * t0 + hh[a] * t2 + dx[a, 1] * t3
-        f[2 * a + 1] += dx[a, 1] * t1 + dx[a, 0] * t3
-    if not tangent:
-        return
-    wt00, wt11, wt01 = (t0, t1, t3) if geometric else (0.0, 0.0, 0.0)
-    cax = t2 / (r * r) if geometric and axisym else 0.0
-    # Exact zeros are left out of the sums: M[2, 2b+1] (a radial stretch only from u_r), in
-    # plane strain M[2, :] (no hoop row) and p2, q2 (unread), in small strain the geometric
-    # terms.  Each dropped term is a +-0.0 added in place, so a sum it left out differs at most
-    # by the sign of a zero, which Ke does not keep (its sums start from +0.0: +0.0 + -0.0 is
-    # +0.0); a non-finite D is a failure (the law's ok) before Ke is read.
-    for b in range(nen):
-        c0, c1 = 2 * b, 2 * b + 1
-        m00, m10, m30 = M[0, c0], M[1, c0], M[3, c0]
-        m01, m11, m31 = M[0, c1], M[1, c1], M[3, c1]
-        # columns of w D M for the two DOFs of node b
-        if axisym:
-            m20 = M[2, c0]
-            p0 = w * (D[0, 0] * m00 + D[0, 1] * m10 + D[0, 2] * m20 + D[0, 3] * m30)
-            p1 = w * (D[1, 0] * m00 + D[1, 1] * m10 + D[1, 2] * m20 + D[1, 3] * m30)
-            p2 = w * (D[2, 0] * m00 + D[2, 1] * m10 + D[2, 2] * m20 + D[2, 3] * m30)
-            p3 = w * (D[3, 0] * m00 + D[3, 1] * m10 + D[3, 2] * m20 + D[3, 3] * m30)
-            q2 = w * (D[2, 0] * m01 + D[2, 1] * m11 + D[2, 3] * m31)
-        else:
-            p0 = w * (D[0, 0] * m00 + D[0, 1] * m10 + D[0, 3] * m30)
-            p1 = w * (D[1, 0] * m00 + D[1, 1] * m10 + D[1, 3] * m30)
-            p3 = w * (D[3, 0] * m00 + D[3, 1] * m10 + D[3, 3] * m30)
-            p2 = q2 = 0.0
-        q0 = w * (D[0, 0] * m01 + D[0, 1] * m11 + D[0, 3] * m31)
-        q1 = w * (D[1, 0] * m01 + D[1, 1] * m11 + D[1, 3] * m31)
-        q3 = w * (D[3, 0] * m01 + D[3, 1] * m11 + D[3, 3] * m31)
-        # material and geometric parts share their factors dN_a/dx_k; geometric: w dN_b/dx_j
-        # tau_ji (i = 0, 1) and the hoop term's w tau33 / r^2 N_b
-        if geometric:
-            T0 = dx[b, 0] * wt00 + dx[b, 1] * wt01
-            T1 = dx[b, 0] * wt01 + dx[b, 1] * wt11
-            a00, a11, b11, b00 = p0 - T0, q3 - T0, p3 - T1, q1 - T1
-        else:
-            a00, a11, b11, b00 = p0, q3, p3, q1
-        if axisym:
-            hb = cax * Nq[q, b]
-            for a in range(nen):
-                x0, x1, h = dx[a, 0], dx[a, 1], hh[a]
-                Ke[2 * a, c0] += x0 * a00 + x1 * p3 + h * p2 - hb * Nq[q, a]
-                Ke[2 * a, c1] += x0 * q0 + x1 * a11 + h * q2
-                Ke[2 * a + 1, c0] += x0 * b11 + x1 * p1
-                Ke[2 * a + 1, c1] += x0 * q3 + x1 * b00
-        else:
-            for a in range(nen):
-                x0, x1 = dx[a, 0], dx[a, 1]
-                Ke[2 * a, c0] += x0 * a00 + x1 * p3
-                Ke[2 * a, c1] += x0 * q0 + x1 * a11
-                Ke[2 * a + 1, c0] += x0 * b11 + x1 * p1
-                Ke[2 * a + 1, c1] += x0 * q3 + x1 * b00
-
-
-@njit(inline="always", **_JIT)
-def _small_strain_point(e, q, ue, uo, dNdX, Nq, R0, axisym, kind, lp, Del, eps_e_n, peeq_n,
-                        eps_e_out, peeq_out, stress_out, w, tangent, f, Ke, dx, hh, eps, stress,
-                        D, eps_e, M):
-    """One Gauss point of ``_small_strain``: trial ``B u_new - B u_old + eps_e_n``, the law,
-    f += w B^T sig and Ke += w B^T D B."""
-    nen = ue.shape[0]
-    for a in range(nen):
-        dx[a, 0], dx[a, 1] = dNdX[e, q, a, 0], dNdX[e, q, a, 1]
-        hh[a] = Nq[q, a] / R0[e, q] if axisym else 0.0
-    n0 = n1 = n2 = n3 = 0.0
-    o0 = o1 = o2 = o3 = 0.0
-    for a in range(nen):
-        n0 += dx[a, 0] * ue[a, 0]
-        n1 += dx[a, 1] * ue[a, 1]
-        n2 += hh[a] * ue[a, 0]
-        n3 += dx[a, 1] * ue[a, 0] + dx[a, 0] * ue[a, 1]
-        o0 += dx[a, 0] * uo[a, 0]
-        o1 += dx[a, 1] * uo[a, 1]
-        o2 += hh[a] * uo[a, 0]
-        o3 += dx[a, 1] * uo[a, 0] + dx[a, 0] * uo[a, 1]
-    eps[0] = (n0 - o0) + eps_e_n[e, q, 0]
-    eps[1] = (n1 - o1) + eps_e_n[e, q, 1]
-    eps[2] = (n2 - o2) + eps_e_n[e, q, 2]
-    eps[3] = (n3 - o3) + eps_e_n[e, q, 3]
-    ok = _point_law(e, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, stress, D,
-                    eps_e)
-    for s in range(4):
-        stress_out[e, q, s] = stress[s]
-    if tangent:                         # M = B (s, d)
-        for a in range(nen):
-            M[0, 2 * a], M[0, 2 * a + 1] = dx[a, 0], 0.0
-            M[1, 2 * a], M[1, 2 * a + 1] = 0.0, dx[a, 1]
-            M[2, 2 * a], M[2, 2 * a + 1] = hh[a], 0.0
-            M[3, 2 * a], M[3, 2 * a + 1] = dx[a, 1], dx[a, 0]
-    _force_and_tangent(nen, dx, hh, stress, D, M, w, tangent, f, Ke, False, axisym, Nq, q, 1.0)
-    return ok
-
-
-@njit(inline="always", **_JIT)
-def _large_strain_point(e, q, F, F33, old, rq, dNdX, Nq, axisym, kind, lp, Del, eps_e_n,
-                        peeq_n, eps_e_out, peeq_out, stress_out, w, tangent, f, Ke, dx, hh, eps,
-                        tau, D, eps_e, M):
-    """One Gauss point of ``_large_strain`` (det F already checked): trial b_e, its Hencky
-    strain and Daleckii-Krein derivative, the law (Kirchhoff tau), f += w G^T tau and
-    Ke += w G^T D M + the geometric part."""
-    nen = dNdX.shape[2]
-    # start of the increment (start_kernel): F_old^-1, F33_old, b_e_n = exp(2 eps_e_n)
-    i00, i01, i10, i11 = old[e, q, 0], old[e, q, 1], old[e, q, 2], old[e, q, 3]
-    bn00, bn01, bn11, bn33 = old[e, q, 5], old[e, q, 6], old[e, q, 7], old[e, q, 8]
-    # relative deformation f = F F_old^-1 and the trial b = f b_n f^T
-    F00, F01, F10, F11 = F[q, 0, 0], F[q, 0, 1], F[q, 1, 0], F[q, 1, 1]
-    f00 = F00 * i00 + F01 * i10
-    f01 = F00 * i01 + F01 * i11
-    f10 = F10 * i00 + F11 * i10
-    f11 = F10 * i01 + F11 * i11
-    g00, g01 = f00 * bn00 + f01 * bn01, f00 * bn01 + f01 * bn11          # f b_n
-    g10, g11 = f10 * bn00 + f11 * bn01, f10 * bn01 + f11 * bn11
-    b00 = g00 * f00 + g01 * f01
-    b01 = g00 * f10 + g01 * f11
-    b10 = g10 * f00 + g11 * f01
-    b11 = g10 * f10 + g11 * f11
-    f33 = F33[q] / old[e, q, 4]
-    b33 = f33 ** 2 * bn33
-    # 1/2 ln b and the eigenprojections
-    lam0, lam1, cs, sn = _sym_eig2(b00, b11, 0.5 * (b01 + b10))
-    P0_00, P0_01, P0_11 = 0.5 * (1.0 + cs), 0.5 * sn, 0.5 * (1.0 - cs)
-    P1_00, P1_01, P1_11 = P0_11, -P0_01, P0_00
-    hl0, hl1 = 0.5 * math.log(lam0), 0.5 * math.log(lam1)
-    E00 = hl0 * P0_00 + hl1 * P1_00
-    E11 = hl0 * P0_11 + hl1 * P1_11
-    E01 = hl0 * P0_01 + hl1 * P1_01
-    eps[0], eps[1], eps[2], eps[3] = E00, E11, 0.5 * math.log(b33), 2.0 * E01
-    ok = _point_law(e, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, tau, D, eps_e)
-    det2 = F00 * F11 - F01 * F10
-    J = det2 * F33[q]
-    for s in range(4):
-        stress_out[e, q, s] = tau[s] / J
-    # spatial gradients dN/dx = dN/dX F^-1 and the hoop row with the current radius
-    r = rq[q]
-    s_inv = 1.0 / (1.0 if det2 == 0.0 else det2)
-    i00, i01, i10, i11 = F11 * s_inv, -F01 * s_inv, -F10 * s_inv, F00 * s_inv
-    for a in range(nen):
-        X0, X1 = dNdX[e, q, a, 0], dNdX[e, q, a, 1]
-        dx[a, 0] = X0 * i00 + X1 * i10
-        dx[a, 1] = X0 * i01 + X1 * i11
-        hh[a] = Nq[q, a] / r if axisym else 0.0
-    if tangent:
-        # material part: d eps_trial = C : (l b + b l^T), l = grad_x du; C from Daleckii-Krein
-        # C = c0 P0 x P0 + c1 P1 x P1 + c2 S x S, S = v0 v1^T + v1 v0^T
-        m = 0.5 * (lam0 + lam1)
-        xr = 0.5 * (lam0 - lam1) / m
-        if xr < 1e-6:
-            ratio = 1.0 + xr * xr / 3.0
-        else:
-            ratio = math.atanh(_nmin(xr, 1 - 1e-16)) / xr
-        c0, c1, c2 = 0.5 / lam0, 0.5 / lam1, 0.25 * ratio / m
-        S_00, S_01, S_11 = -sn, cs, sn
-        for b in range(nen):
-            h0 = dx[b, 0] * b00 + dx[b, 1] * b10                         # h_bn = dN_b/dx_m b_mn
-            h1 = dx[b, 0] * b01 + dx[b, 1] * b11
-            for k in range(2):
-                # (P h_b)_k = sum_n P_kn h_bn, then dE_ijbk = 2 (c0 P0_ij (P0 h)_k + ...)
-                if k == 0:
-                    p0 = P0_00 * h0 + P0_01 * h1
-                    p1 = P1_00 * h0 + P1_01 * h1
-                    p2 = S_00 * h0 + S_01 * h1
-                else:
-                    p0 = P0_01 * h0 + P0_11 * h1
-                    p1 = P1_01 * h0 + P1_11 * h1
-                    p2 = S_01 * h0 + S_11 * h1
-                u0, u1, u2 = 2.0 * c0 * p0, 2.0 * c1 * p1, 2.0 * c2 * p2
-                d = 2 * b + k
-                M[0, d] = u0 * P0_00 + u1 * P1_00 + u2 * S_00
-                M[1, d] = u0 * P0_11 + u1 * P1_11 + u2 * S_11
-                M[3, d] = 2.0 * (u0 * P0_01 + u1 * P1_01 + u2 * S_01)
-                M[2, d] = hh[b] if k == 0 else 0.0                     # d eps33 = du_r / r
-    _force_and_tangent(nen, dx, hh, tau, D, M, w, tangent, f, Ke, True, axisym, Nq, q, r)
     return ok
 
 
