@@ -7,7 +7,6 @@ A linear spring ``k d = F`` solved with a tangent ``k / (1 - rho)`` converges li
 exact ratio ``rho``: ``|R|/F = rho^n`` after n solves (the error is multiplied by ``1 - 1/c`` at
 each solve, c the tangent's factor), so the iteration the rule must stop at, and the count it
 predicts, are known in closed form: ``log(RTOL / rho^n) / log(rho)`` iterations to go."""
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -17,9 +16,9 @@ from lagamine_py.elements.base import GroupResult, StepContext
 from lagamine_py.model import CONTROL_PARAMS
 from lagamine_py.solver import newton
 from lagamine_py.solver.linear import SpluSolver
-from lagamine_py.solver.newton import IterationObserver, Settings, solve_increment
+from lagamine_py.solver.newton import Settings, solve_increment
 
-from test_rate_rule import Switching
+from test_rate_rule import HoldThenRestart, Switching
 from test_solver_fakes import GROUND, Springs
 from test_solver_newton import setup
 
@@ -125,28 +124,6 @@ def test_no_cut_while_states_switch():
     assert err.value.solves == 25
 
 
-class HoldOnce(IterationObserver):
-    """Holds from the first evaluation; the first settle drops the hold (the free law from the
-    iterate reached), granting no iterations of its own."""
-
-    def __init__(self):
-        self.holding = True
-
-    @property
-    def active(self):
-        return self.holding
-
-    def start(self, ctx):
-        return replace(ctx, freeze_contact={"held": np.zeros(1, np.int8)})
-
-    def context(self, ctx, states):
-        return replace(ctx, freeze_contact={"held": np.zeros(1, np.int8)}) if self.holding else ctx
-
-    def settle(self, ctx, states):
-        self.holding = False
-        return ctx
-
-
 def test_a_failed_review_starts_the_count_again():
     """The held law converges at solve 1 (d = F / 2k = 1, exact); the review at pass 1 finds
     the free law at |R|/F = 0.5 and drops the hold; the free law with rho = -1 stalls (d = 1,
@@ -157,7 +134,7 @@ def test_a_failed_review_starts_the_count_again():
     with pytest.raises(SlowConvergence) as err:
         solve_increment(problem, SpluSolver(), free, np.zeros(2), problem.init_states(),
                         StepContext(), np.zeros(0), np.array([2.0, 0.0]), Settings(etol=0.0),
-                        observers=(HoldOnce(),))
+                        observers=(HoldThenRestart(0),))
     assert err.value.solves == 8 and len(err.value.history) == 10
     assert err.value.history[:3] == [1.0, 0.0, 0.5]
     assert err.value.history[2:] == pytest.approx([0.5, 1 / 3] * 4)
@@ -177,7 +154,7 @@ def test_a_review_after_an_energy_convergence_counts_its_extra_residual():
     with pytest.raises(SlowConvergence) as err:
         solve_increment(problem, SpluSolver(), free, np.zeros(2), problem.init_states(),
                         StepContext(), np.zeros(0), np.array([2.0, 0.0]), Settings(rtol=1e-15),
-                        observers=(HoldOnce(),))
+                        observers=(HoldThenRestart(0),))
     h = err.value.history
     assert h[:3] == pytest.approx([1.0, 1e-6, 1e-12], rel=1e-3) and h[3] < 1e-15
     assert h[4:] == pytest.approx([0.5, 1 / 3] * 4)
