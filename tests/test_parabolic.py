@@ -14,7 +14,7 @@ import pytest
 
 from lagamine_py.model import Amplitude
 from lagamine_py.solver.predictor import extrapolated, first_iterate
-from test_solver_steps import cload, grounded, make_model, solve, step
+from test_solver_steps import cload, grounded, make_model, solve, solve_recording_starts, step
 
 DECK = Path(__file__).resolve().parents[1] / "decks" / "press_slide.dat"
 
@@ -97,28 +97,15 @@ def test_a_quadratic_load_path_converges_at_the_parabolic_first_iterate(tmp_path
     assert _quadratic_ramp(tmp_path, "LINEAR", times) == [1, 1, 1, 1, 1, 1]
 
 
-def test_parabolic_does_not_cross_steps(tmp_path):
+def test_parabolic_does_not_cross_steps(tmp_path, monkeypatch):
     """A step's first increment starts from the converged state; its second uses its first only
     (linear): the path of step 2 is a straight ramp, so the second increment is exact."""
-    from lagamine_py.solver import newton
-    import lagamine_py.solver.steps as steps_mod
-    starts = []
-    orig = newton.solve_increment
-
-    def spy(*a, **k):
-        starts.append(k.get("predicted"))
-        return orig(*a, **k)
-
     controls = {"EXTRAPOLATION": "PARABOLIC", "GROWTH": 1.0}
     model = make_model(1, [step("A", dt0=0.25, dt_max=0.25, cloads=[cload(0, 1, 4.0)],
                                 controls=controls),
                            step("B", dt0=0.25, dt_max=0.25, cloads=[cload(0, 1, -4.0)],
                                 controls=controls)])
-    steps_mod.solve_increment = spy
-    try:
-        out, rec = solve(tmp_path, model, grounded([2.0]))
-    finally:
-        steps_mod.solve_increment = orig
+    out, rec, starts = solve_recording_starts(tmp_path, model, grounded([2.0]), monkeypatch)
     assert out.status == 0
     assert [s is None for s in starts] == [True, False, False, False] * 2
     assert [r.iterations for r in rec.results] == [1, 0, 0, 0] * 2

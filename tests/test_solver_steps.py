@@ -28,6 +28,22 @@ def solve(tmp_path, model, groups, kinds=None, pressure_groups=None, **rec):
     return out, writer
 
 
+def solve_recording_starts(tmp_path, model, groups, monkeypatch):
+    """:func:`solve`, recording the predicted part of each attempt's first iterate (None where
+    nothing was extrapolated): ``(out, rec, starts)``."""
+    from lagamine_py.solver import newton
+    import lagamine_py.solver.steps as steps_mod
+    starts, orig = [], newton.solve_increment
+
+    def spy(*a, **k):
+        starts.append(k.get("predicted"))
+        return orig(*a, **k)
+
+    monkeypatch.setattr(steps_mod, "solve_increment", spy)
+    out, rec = solve(tmp_path, model, groups)
+    return out, rec, starts
+
+
 def grounded(ks_x, ky=1.0):
     """Node r: x DOF on a grounded spring ks_x[r], y DOF on a grounded spring ky."""
     n = len(ks_x)
@@ -334,26 +350,13 @@ def test_extrapolation_rule_and_step_start():
     assert extrapolated(u, (du, 0.2), 0.1, "NONE") is None
 
 
-def test_extrapolation_does_not_cross_steps(tmp_path):
+def test_extrapolation_does_not_cross_steps(tmp_path, monkeypatch):
     """Step 2 reverses the load: its first increment starts from the converged state (as the
     iteration count of a linear problem cannot tell, the predicted part of the first iterate is
     recorded: None where nothing was extrapolated)."""
-    from lagamine_py.solver import newton
-    starts = []
-    orig = newton.solve_increment
-
-    def spy(*a, **k):
-        starts.append(k.get("predicted"))
-        return orig(*a, **k)
-
     model = make_model(1, [step("A", dt0=0.5, dt_max=0.5, cloads=[cload(0, 1, 4.0)]),
                            step("B", dt0=0.5, dt_max=0.5, cloads=[cload(0, 1, -4.0)])])
-    import lagamine_py.solver.steps as steps_mod
-    steps_mod.solve_increment = spy
-    try:
-        out, rec = solve(tmp_path, model, grounded([2.0]))
-    finally:
-        steps_mod.solve_increment = orig
+    out, rec, starts = solve_recording_starts(tmp_path, model, grounded([2.0]), monkeypatch)
     assert out.status == 0
     assert [s is None for s in starts] == [True, False, True, False]
     assert rec.results[-1].u[0, 0] == pytest.approx(-2.0, rel=1e-12)
