@@ -7,11 +7,13 @@ Two predictors, tried in this order (:func:`first_iterate`):
   Started from the converged state instead, every contact point and material point is in the
   elastic (stick) state of a zero increment, and the slip zone of the previous increment is
   rediscovered one front point per iteration (10-15 iterations an increment on fine meshes,
-  cut-backs when the front oscillates);
-  **parabolic extrapolation** (``EXTRAPOLATION=PARABOLIC``, Abaqus' ``*STEP,
-  EXTRAPOLATION=PARABOLIC``): the quadratic in time through the converged displacements at the
-  end of the last two increments of the step and now, evaluated at the new time (increments of
-  any lengths); linear while only one increment of the step has converged;
+  cut-backs when the front oscillates); or its variant, **parabolic extrapolation**
+  (``EXTRAPOLATION=PARABOLIC``, Abaqus' ``*STEP, EXTRAPOLATION=PARABOLIC``): the quadratic in
+  time through the converged displacements at the end of the last two increments of the step
+  and now, evaluated at the new time (increments of any lengths); linear while only one
+  increment of the step has converged.  Not the default: the slip released behind a moving
+  front, which is what the first iterate misses, is no smoother in time (docs/performance.md,
+  "A parabolic first iterate");
 * **the foundations' translation**, at a step start (nothing to extrapolate) when every
   foundation moves by the same nonzero ``dc`` over the increment: every node translated by
   ``dc``.  Contact, solid and pressure forces are invariant under a common translation of body
