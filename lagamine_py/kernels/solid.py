@@ -362,7 +362,7 @@ def _block_deformation(U, X, Nq, R0, el, q, nen, axisym, Fq):
             Fp[_L + l] += u[l] * x[_L + l]
             Fp[2 * _L + l] += u[_L + l] * x[l]
             Fp[3 * _L + l] += u[_L + l] * x[_L + l]
-    for l in range(_L):
+    for l in range(_L):     # "+ 0.0" as _deformation's acc + 0.0: a -0.0 sum becomes +0.0
         Fp[l] = Fp[l] + 1.0
         Fp[_L + l] = Fp[_L + l] + 0.0
         Fp[2 * _L + l] = Fp[2 * _L + l] + 0.0
