@@ -49,13 +49,27 @@ def tail(code: np.ndarray, tau: np.ndarray, p: np.ndarray, n: int) -> str:
     return " ".join(f"{CODES[int(c)]}{r:+.3f}" for c, r in zip(code[-n:], ratio[-n:]))
 
 
+def node_count(problem) -> int:
+    """Nodes of the problem (its nodal DOFs come first, two per node; the rest are reference
+    nodes' rotations)."""
+    return problem.nodal // 2 if problem.nodal >= 0 else problem.ndof // 2
+
+
+def contact_codes(problem, states: list[dict]) -> list[np.ndarray]:
+    """The state codes (``o k + -``) of each contact group's points in ``states``."""
+    from lagamine_py.solver import stabilisation
+    from lagamine_py.solver.problem import CONTACT
+    return [stabilisation.state_codes(states[k]["status"], states[k]["tau"], states[k]["p"])
+            for k in problem.indices(CONTACT)]
+
+
 def regions(problem, constrained: np.ndarray) -> dict[str, np.ndarray]:
     """(n,) bool masks of the nodes the first-iterate report splits the residual by: the
     contact surfaces' nodes (``contact``), the nodes sharing a solid element with a node of
     a constrained DOF and on no contact surface (``edge``: the imposed edge's neighbours and
     itself), the rest (``body``)."""
     from lagamine_py.solver.problem import CONTACT, SOLID
-    n = problem.nodal // 2 if problem.nodal >= 0 else problem.ndof // 2
+    n = node_count(problem)
     contact = np.zeros(n, bool)
     for k in problem.indices(CONTACT):
         contact[np.asarray(problem.groups[k].face_nodes).ravel()] = True
@@ -93,7 +107,7 @@ def first_report(problem, model, R: np.ndarray, free: np.ndarray, constrained: n
     nodes split by their converged states, :func:`contact_node_zones`), the node of the largest
     residual, and the prediction's error ``u_start - u_converged`` (its largest by region)
     and the contact points whose state at the first iterate is not their converged one."""
-    n = problem.nodal // 2 if problem.nodal >= 0 else problem.ndof // 2
+    n = node_count(problem)
     Rn = np.zeros(problem.ndof)
     Rn[free] = R[free]
     r2 = (Rn[:2 * n].reshape(n, 2) ** 2).sum(axis=1)
@@ -123,7 +137,7 @@ def worst_contact_nodes(problem, R, free, error, starts, firsts, ends, scale, co
     node, x, R/F (x, y), the prediction's error (x, y), and the states (``o k + -``) of the
     points of its faces at the increment's start, at the first iterate and converged."""
     from lagamine_py.solver.problem import CONTACT
-    n = problem.nodal // 2 if problem.nodal >= 0 else problem.ndof // 2
+    n = node_count(problem)
     Rn = np.zeros(problem.ndof)
     Rn[free] = R[free]
     R2, e2 = Rn[:2 * n].reshape(n, 2), error[:2 * n].reshape(n, 2)
@@ -168,7 +182,6 @@ def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sy
     from lagamine_py.output import Writer, default_writers
     from lagamine_py.solver import stabilisation
     from lagamine_py.solver import steps as steps_mod
-    from lagamine_py.solver.problem import CONTACT
 
     inner = stabilisation.FlipFlop.context
     solve = steps_mod.solve_increment
@@ -182,20 +195,15 @@ def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sy
         R = ev.f_int - f_ext
         scale = max(float(np.linalg.norm(f_ext)), float(np.linalg.norm(R[free.constrained])),
                     ev.scale, 1e-300)
-        contact = problem.indices(CONTACT)
-        codes = [stabilisation.state_codes(s_["status"], s_["tau"], s_["p"])
-                 for s_ in (ev.states[i] for i in contact)]
-        ends = [stabilisation.state_codes(s_["status"], s_["tau"], s_["p"])
-                for s_ in (conv.states[i] for i in contact)]
+        codes, ends = contact_codes(problem, ev.states), contact_codes(problem, conv.states)
         print(first_report(problem, problem.model, R, free.free, free.constrained,
                            u0 - conv.u, codes, ends, scale), file=out)
         print(force_changes(problem, ev.results, problem.evaluate(conv.u, u_old, states, ctx,
                                                                   False).results,
                             free.free, scale), file=out)
         if first_nodes:
-            starts = [stabilisation.state_codes(s_["status"], s_["tau"], s_["p"])
-                      for s_ in (states[i] for i in contact)]
-            print(worst_contact_nodes(problem, R, free.free, u0 - conv.u, starts, codes, ends,
+            print(worst_contact_nodes(problem, R, free.free, u0 - conv.u,
+                                      contact_codes(problem, states), codes, ends,
                                       scale, first_nodes), file=out)
         return conv
 
