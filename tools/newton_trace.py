@@ -182,8 +182,12 @@ def strip_oracle(problem, u0, conv_u, u_old, states, ctx, f_ext, free, scale,
                  layers: list[int]) -> str:
     """One line: the first iterate's |R|/F (over the free DOFs) with the DOFs of each strip
     of ``layers`` element layers replaced by the converged answer's: the best a relaxation
-    local to that strip can do; the strip's share of the nodes in brackets."""
+    local to that strip can do; in brackets the strip's share of the nodes and of the
+    prediction's squared error ``|u0 - u|^2`` over the free DOFs."""
     n = node_count(problem)
+    error = np.zeros(problem.ndof)
+    error[free] = (np.asarray(u0) - conv_u)[free]
+    total = max(float(error @ error), 1e-300)
     parts = []
     for k in layers:
         strip = strip_nodes(problem, k)
@@ -192,32 +196,32 @@ def strip_oracle(problem, u0, conv_u, u_old, states, ctx, f_ext, free, scale,
         u[dofs] = conv_u[dofs]
         R = problem.evaluate(u, u_old, states, ctx, False).f_int - f_ext
         parts.append(f"k={k} {np.linalg.norm(R[free]) / scale:.2e} "
-                     f"({100 * strip.sum() / n:.0f} %)")
+                     f"({100 * strip.sum() / n:.0f} % nodes, "
+                     f"{100 * float(error[dofs] @ error[dofs]) / total:.0f} % error)")
     return "    strip oracle |R|/F: " + ", ".join(parts)
 
 
-def strip_relaxed(problem, u0, u_old, states, ctx, f_ext, free, scale, layers: list[int],
+def strip_relaxed(problem, u0, u_old, states, ctx0, ctx, f_ext, free, scale, layers: list[int],
                   sweeps: int = 4) -> str:
     """One line: the first iterate's |R|/F after each of ``sweeps`` local relaxations on each
     strip of ``layers`` element layers: ``K_SS du_S = -R_S`` with the strip's block of the
-    tangent at the first iterate (factorised once), the rest held, re-evaluated after each."""
+    tangent at the first iterate (factorised once), the rest held.  The first iterate is
+    evaluated in ``ctx0`` (Newton's first context: the fronts' holds), the relaxed ones in
+    ``ctx`` (the law's states free), as Newton evaluates its first and later iterates."""
     import scipy.sparse.linalg as spla
-    ev = problem.evaluate(np.array(u0, float), u_old, states, ctx, True)
-    Kff = free.kff(ev.data)
+    ev = problem.evaluate(np.array(u0, float), u_old, states, ctx0, True)
+    Kff, R0 = free.kff(ev.data), ev.f_int - f_ext
     where = np.full(problem.ndof, -1, np.int64)
     where[free.free] = np.arange(free.free.size)
     parts = []
     for k in layers:
         dofs = np.flatnonzero(np.repeat(strip_nodes(problem, k), 2))
-        pos = where[dofs[dofs < where.size]]
+        pos = where[dofs]
         pos = pos[pos >= 0]
         lu = spla.splu(Kff[pos][:, pos].tocsc())
-        u = np.array(u0, float)
-        rels = []
+        u, R, rels = np.array(u0, float), R0, []
         for _ in range(sweeps):
-            R = problem.evaluate(u, u_old, states, ctx, False).f_int - f_ext
-            Rf = R[free.free]
-            u[free.free[pos]] -= lu.solve(Rf[pos])
+            u[free.free[pos]] -= lu.solve(R[free.free[pos]])
             R = problem.evaluate(u, u_old, states, ctx, False).f_int - f_ext
             rels.append(np.linalg.norm(R[free.free]) / scale)
         parts.append(f"k={k} " + " ".join(f"{r:.2e}" for r in rels))
@@ -268,7 +272,8 @@ def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sy
             print(strip_oracle(problem, u0, conv.u, u_old, states, ctx0, f_ext, free.free,
                                scale, strip), file=out)
         if relax:
-            print(strip_relaxed(problem, u0, u_old, states, ctx0, f_ext, free, scale, relax),
+            print(strip_relaxed(problem, u0, u_old, states, ctx0, ctx, f_ext, free, scale,
+                                relax),
                   file=out)
         print(first_report(problem, problem.model, R, free.free, free.constrained,
                            u0 - conv.u, codes, ends, scale), file=out)
