@@ -93,3 +93,38 @@ def test_regions_of_the_main_job():
     # the right column of Q8 elements spans x = 37.5 .. 40 (h = 2.5)
     assert np.array_equal(zones["edge"], (x[:, 0] >= 37.5 - 1e-9) & ~np.isclose(x[:, 1], 0.0))
     assert np.array_equal(zones["body"], ~(zones["contact"] | zones["edge"]))
+
+
+def test_strip_nodes_are_the_element_layers_along_the_interface():
+    """The main job's mesh is 16 x 8 Q8 elements of 2.5 mm on a 40 x 20 mm block in contact
+    along y = 0: the strip of k element layers is the nodes with y <= 2.5 k (closed form from
+    the mesh), all of them from k = 8 on."""
+    from lagamine_py.solver.problem import build_problem
+    model = load_deck(ROOT / "decks" / "press_slide.dat")
+    problem = build_problem(model)
+    y = model.coords[:, 1]
+    for k in (0, 1, 2, 4, 8, 9):
+        assert np.array_equal(newton_trace.strip_nodes(problem, k), y <= 2.5 * k + 1e-9)
+
+
+def test_strip_oracle_and_relaxation_on_the_whole_body_are_the_converged_and_newton(tmp_path):
+    """``--strip`` / ``--relax`` with a strip of every node (k = 8 on the main job): the oracle
+    is the converged answer itself (its |R|/F at the tolerance's level, 100 % of the error in
+    the strip), and one relaxation sweep is Newton's first solve, whose iteration-1 |R|/F the
+    log gives (an independent computation; the trace divides by the first iterate's force
+    scale, Newton by each iterate's own, so they agree to 1 % once the scale settles: from the
+    press's second increment on).  The contact nodes alone (k = 0) hold a part of the error."""
+    model = load_deck(ROOT / "decks" / "press_slide.dat")
+    out = io.StringIO()
+    assert newton_trace.trace(model, tmp_path / "out", increments=4, out=out, strip=(0, 8),
+                              relax=(8,)) is None
+    text = out.getvalue()
+    newton1 = [float(v) for v in re.findall(r"iter +1 +\|R\|/F = (\S+)", text)]
+    oracle = re.findall(r"strip oracle \|R\|/F: k=0 (\S+) \((\d+) % nodes, (\d+) % error\), "
+                        r"k=8 (\S+) \(100 % nodes, 100 % error\)", text)
+    relaxed = [float(v) for v in re.findall(r"strip relaxed \|R\|/F per sweep: k=8 (\S+)", text)]
+    assert len(newton1) == len(oracle) == len(relaxed) == 4
+    for _, nodes, error, whole in oracle:
+        assert float(whole) < 1e-8 and int(nodes) == 8 and int(error) < 100
+    for r1, sweep in zip(newton1[1:], relaxed[1:]):
+        assert abs(sweep / r1 - 1.0) < 1e-2

@@ -4,6 +4,7 @@
     python tools/newton_trace.py --deck decks/stick_slip.dat --controls FLIPFLOP=2
     python tools/newton_trace.py 40 20 --tail 8 --increments 6
     python tools/newton_trace.py 40 20 --first --controls EXTRAPOLATION=PARABOLIC
+    python tools/newton_trace.py 40 20 --strip 0 1 2 4 8      # the strip oracle
 
 Prints the solver's per-iteration log (``|R|/F``, the energy, the reviews of frozen points, the
 cut-backs) and, after each solve, the contact points whose state (open ``o``, stick ``k``, slip
@@ -11,7 +12,10 @@ with tau > 0 ``+``, slip with tau < 0 ``-``: :func:`lagamine_py.solver.stabilisa
 changed between the two last iterates, as ``<point><from><to>``.  ``--tail N`` adds the state
 and ``tau / p`` of the last N points of each group after every solve (press-then-slide: the
 points next to the pushed corner).  ``--first`` adds, after each converged increment, where
-its first iterate's residual sat (:func:`first_report`).  What ``docs/performance.md`` ("Newton solves per increment")
+its first iterate's residual sat (:func:`first_report`).  ``--strip K ...`` adds, after each
+converged increment, the oracle of a local relaxation: the first iterate's |R|/F with the DOFs of
+the strip of K element layers along the contact interface (:func:`strip_nodes`) replaced by
+the converged answer's (:func:`strip_oracle`).  What ``docs/performance.md`` ("Newton solves per increment")
 reads its traces from; the counts do not depend on the machine's load.
 
 The trace wraps :meth:`FlipFlop.context <lagamine_py.solver.stabilisation.FlipFlop.context>`
@@ -157,6 +161,73 @@ def worst_contact_nodes(problem, R, free, error, starts, firsts, ends, scale, co
     return "\n".join(lines)
 
 
+def strip_nodes(problem, layers: int) -> np.ndarray:
+    """(n,) bool mask of the strip: the contact surfaces' nodes (``layers`` 0), then each layer
+    the nodes sharing a solid element with a node of the strip (one ring of elements)."""
+    from lagamine_py.solver.problem import CONTACT, SOLID
+    n = node_count(problem)
+    strip = np.zeros(n, bool)
+    for k in problem.indices(CONTACT):
+        strip[np.asarray(problem.groups[k].face_nodes).ravel()] = True
+    conns = [np.asarray(problem.groups[k].conn, np.int64) for k in problem.indices(SOLID)]
+    for _ in range(layers):
+        grown = strip.copy()
+        for conn in conns:
+            grown[conn[strip[conn].any(axis=1)].ravel()] = True
+        strip = grown
+    return strip
+
+
+def strip_oracle(problem, u0, conv_u, u_old, states, ctx, f_ext, free, scale,
+                 layers: list[int]) -> str:
+    """One line: the first iterate's |R|/F (over the free DOFs) with the DOFs of each strip
+    of ``layers`` element layers replaced by the converged answer's: the best a relaxation
+    local to that strip can do; in brackets the strip's share of the nodes and of the
+    prediction's squared error ``|u0 - u|^2`` over the free DOFs."""
+    n = node_count(problem)
+    error = np.zeros(problem.ndof)
+    error[free] = (np.asarray(u0) - conv_u)[free]
+    total = max(float(error @ error), 1e-300)
+    parts = []
+    for k in layers:
+        strip = strip_nodes(problem, k)
+        dofs = np.flatnonzero(np.repeat(strip, 2))
+        u = np.array(u0, float)
+        u[dofs] = conv_u[dofs]
+        R = problem.evaluate(u, u_old, states, ctx, False).f_int - f_ext
+        parts.append(f"k={k} {np.linalg.norm(R[free]) / scale:.2e} "
+                     f"({100 * strip.sum() / n:.0f} % nodes, "
+                     f"{100 * float(error[dofs] @ error[dofs]) / total:.0f} % error)")
+    return "    strip oracle |R|/F: " + ", ".join(parts)
+
+
+def strip_relaxed(problem, u0, u_old, states, ctx0, ctx, f_ext, free, scale, layers: list[int],
+                  sweeps: int = 4) -> str:
+    """One line: the first iterate's |R|/F after each of ``sweeps`` local relaxations on each
+    strip of ``layers`` element layers: ``K_SS du_S = -R_S`` with the strip's block of the
+    tangent at the first iterate (factorised once), the rest held.  The first iterate is
+    evaluated in ``ctx0`` (Newton's first context: the fronts' holds), the relaxed ones in
+    ``ctx`` (the law's states free), as Newton evaluates its first and later iterates."""
+    import scipy.sparse.linalg as spla
+    ev = problem.evaluate(np.array(u0, float), u_old, states, ctx0, True)
+    Kff, R0 = free.kff(ev.data), ev.f_int - f_ext
+    where = np.full(problem.ndof, -1, np.int64)
+    where[free.free] = np.arange(free.free.size)
+    parts = []
+    for k in layers:
+        dofs = np.flatnonzero(np.repeat(strip_nodes(problem, k), 2))
+        pos = where[dofs]
+        pos = pos[pos >= 0]
+        lu = spla.splu(Kff[pos][:, pos].tocsc())
+        u, R, rels = np.array(u0, float), R0, []
+        for _ in range(sweeps):
+            u[free.free[pos]] -= lu.solve(R[free.free[pos]])
+            R = problem.evaluate(u, u_old, states, ctx, False).f_int - f_ext
+            rels.append(np.linalg.norm(R[free.free]) / scale)
+        parts.append(f"k={k} " + " ".join(f"{r:.2e}" for r in rels))
+    return "    strip relaxed |R|/F per sweep: " + ", ".join(parts)
+
+
 def force_changes(problem, first, converged, free: np.ndarray, scale: float) -> str:
     """How far each kind of group's force at the first iterate is from its converged one, over
     the free DOFs, relative to F: which groups' forces the first iterate's residual is made of
@@ -174,7 +245,8 @@ def force_changes(problem, first, converged, free: np.ndarray, scale: float) -> 
 
 
 def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sys.stdout,
-          writers=(), first: bool = False, first_nodes: int = 0):
+          writers=(), first: bool = False, first_nodes: int = 0, strip: tuple = (),
+          relax: tuple = ()):
     """Run ``model`` with the trace on; returns the run's :class:`Outcome` (None when stopped
     after ``increments`` converged increments).  ``writers``: more writers to hand the run to
     (they see every increment before the trace stops).  ``first``: after each converged
@@ -196,6 +268,13 @@ def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sy
         scale = max(float(np.linalg.norm(f_ext)), float(np.linalg.norm(R[free.constrained])),
                     ev.scale, 1e-300)
         codes, ends = contact_codes(problem, ev.states), contact_codes(problem, conv.states)
+        if strip:
+            print(strip_oracle(problem, u0, conv.u, u_old, states, ctx0, f_ext, free.free,
+                               scale, strip), file=out)
+        if relax:
+            print(strip_relaxed(problem, u0, u_old, states, ctx0, ctx, f_ext, free, scale,
+                                relax),
+                  file=out)
         print(first_report(problem, problem.model, R, free.free, free.constrained,
                            u0 - conv.u, codes, ends, scale), file=out)
         print(force_changes(problem, ev.results, problem.evaluate(conv.u, u_old, states, ctx,
@@ -237,7 +316,7 @@ def trace(model, outdir: Path, tail_points: int = 0, increments: int = 0, out=sy
     solver_log.addHandler(handler)
     solver_log.setLevel(logging.INFO)
     stabilisation.FlipFlop.context = context
-    if first or first_nodes:
+    if first or first_nodes or strip or relax:
         steps_mod.solve_increment = solve_reported
     try:
         return steps_mod.run(model, outdir,
@@ -263,6 +342,10 @@ def main(argv=None) -> int:
                    help="where each converged increment's first iterate's residual sat")
     p.add_argument("--first-nodes", type=int, default=0,
                    help="with --first: the N contact nodes of the largest first residual")
+    p.add_argument("--strip", type=int, nargs="+", default=[], metavar="K",
+                   help="the strip oracle with K element layers along the interface")
+    p.add_argument("--relax", type=int, nargs="+", default=[], metavar="K",
+                   help="the first iterate relaxed on strips of K element layers (4 sweeps)")
     args = p.parse_args(argv)
     from lagamine_py.deck import load_deck
     work = Path(tempfile.mkdtemp(prefix="newton_trace_"))
@@ -280,7 +363,8 @@ def main(argv=None) -> int:
     for step in model.steps:
         step.controls.update(values)
     outcome = trace(model, work / "out", args.tail, args.increments, first=args.first,
-                    first_nodes=args.first_nodes)
+                    first_nodes=args.first_nodes, strip=tuple(args.strip),
+                    relax=tuple(args.relax))
     if outcome is not None:
         print("\n".join(outcome.summary[:-1]))
     return 0 if outcome is None or outcome.status == 0 else int(outcome.status)
