@@ -32,7 +32,7 @@ from ..model import (CONTROL_PARAMS, OUTPUT_FIELDS, Amplitude, Boundary, CLoad, 
                      MaterialSpec, Model, OutputRequest, Stabilisation, Step, Surface, Where)
 from . import abaqus
 from .errors import Problems
-from .grammar import Block, Num, NumberRows
+from .grammar import Block, DataRow, Num, NumberRows, Pair
 from .imports import ImportMixin
 from .keywords import KEYWORDS, check_data, check_params, data_spec
 from .mesh import ElementGroup, ElementIndex, Files, NodeTable, face_table
@@ -255,7 +255,7 @@ class _Builder(ImportMixin):
             return
         if kw == "STEP" and not self.model_done:
             self._finish_model()
-        if blk.broken:
+        if blk.broken or (blk.continued and self._continued(blk, spec)):
             params = None
         else:
             params = check_params(spec, blk, self.pb)
@@ -273,6 +273,24 @@ class _Builder(ImportMixin):
             if kw not in ("STEP", "END STEP") and (kw not in _PARTIAL_OK or data is None):
                 return
         getattr(self, "_kw_" + kw.lower().replace(" ", "_"))(blk, params, data)
+
+    def _continued(self, blk: Block, spec) -> bool:
+        """True (after saying so) when the keyword line ends with ',' and the next line gives
+        parameters of the keyword: Abaqus reads such a line on, this language does not (the next
+        line would be data, and a data line of ``KEY=VALUE`` pairs is a plugin's parameters)."""
+        row = blk.data[0] if blk.data else None
+        if not isinstance(row, DataRow) or not row.items or not all(
+                isinstance(it, Pair) for it in row.items):
+            return False
+        names = {p.name for p in spec.params}
+        keys = [it.key for it in row.items if it.key in names]
+        if not keys:
+            return False
+        self.pb.add(row.file, row.line, blk.keyword,
+                    f"{', '.join(keys)} {'is a parameter' if len(keys) == 1 else 'are parameters'} of "
+                    f"*{blk.keyword}: write {'it' if len(keys) == 1 else 'them'} on the keyword line "
+                    f"(line {blk.line}); a keyword line ending with ',' does not go on to the next line")
+        return True
 
     def _scope(self, blk: Block, spec) -> bool:
         kw = blk.keyword
@@ -1224,7 +1242,9 @@ class _Builder(ImportMixin):
                          + f" at ({xy[members[0], 0]:.6g}, {xy[members[0], 1]:.6g})")
         n = int((count > 1).sum())
         f, ln = self.nodes.where(int(self._old_row(order[0])))
-        self._notice(f, ln, "NODE", f"{n} place{'s' * (n > 1)} of the mesh hold{'s' * (n == 1)} more than "
+        # the line that made the node: a *NODE data line, or a *MESH or *IMPORT keyword line
+        kw = next((b.keyword for b in self.blocks if (b.file, b.line) == (f, ln)), "NODE")
+        self._notice(f, ln, kw, f"{n} place{'s' * (n > 1)} of the mesh hold{'s' * (n == 1)} more than "
                                     f"one node, which are not joined (merge them if they should be): "
                                     + "; ".join(pairs) + (" ..." if n > 5 else ""))
 
@@ -1514,7 +1534,7 @@ def _split_param_error(message: str) -> list[str]:
     """The parts of a ParamError message ('; '-joined), keeping each 'expected one of' with its part."""
     parts: list[str] = []
     for piece in message.split("; "):
-        if piece.startswith("expected ") and parts:
+        if piece.startswith(("expected ", "installed: ")) and parts:
             parts[-1] += "; " + piece
         else:
             parts.append(piece)
