@@ -47,11 +47,20 @@ ROOT = Path(__file__).resolve().parents[1]
 DECKS = ROOT / "decks"
 #: the example decks fuzzed (the small ones: a run of a few increments takes ~0.1-0.5 s)
 FUZZED = ("coulomb_block.dat", "flat_punch.dat", "stick_slip.dat", "compression_ro.dat",
-          "axisym_press_friction.dat", "tube_limit.dat", "hertz.dat")
+          "axisym_press_friction.dat", "tube_limit.dat", "hertz.dat",
+          # the keywords added since: tools with a REF NODE, *FOUNDATION MOTION, CIRCLE=,
+          # *CHANGE CONTACT LAW, *CONTACT STABILIZATION, MASTER=, *AMPLITUDE, *OUTPUT ...
+          "press_slide.dat", "upsetting.dat", "tube_crimp.dat", "tube_joint.dat", "rolling.dat",
+          "ring.dat", "hertz_two_body.dat", "tests/data/tools/two_tools.dat",
+          "tests/data/tools/roll_turn.dat", "tests/data/tools/hertz_force.dat",
+          "tests/data/tools/change_law.dat", "tests/data/decks_md/walk_tools.dat",
+          "tests/data/decks_md/walk_two_body.dat")
+#: files the fuzzed decks include, linked beside the mutated decks
+INCLUDED = (DECKS / "meshes", ROOT / "tests/data/decks_md/walk_mesh.inc")
 #: form-only changes of a deck's text: its meaning stays (the judge compares outcomes)
-NEUTRAL = ("crlf", "bom", "tabs", "blanks", "lower")
+NEUTRAL = ("crlf", "cr", "bom", "tabs", "blanks", "lower")
 #: form changes that may make a deck unreadable (then refused with a message) or keep it
-FORMS = NEUTRAL + ("cr", "trailing", "inline", "split", "indent")
+FORMS = NEUTRAL + ("trailing", "inline", "split", "indent")
 CONTROL_BAD = ("0", "-1", "1e30", "-1e30", "2.5", "", "X", "CUBIC", "YES", "NO", "1e-30", "nan",
                "inf", "1001", "2147483648", "<UNDEFINED>", "0x10", "1,", "AUTO")
 EDGE_VALUES = ("0", "-1", "1e30", "1e-30", "-0.5", "2", "1e-300", "0.5", "1e300", "-1e300")
@@ -337,17 +346,23 @@ def non_finite(outdir: Path) -> list[str]:
 
 
 def deck_dir(tmp: Path) -> Path:
-    """A directory for mutated decks that sees ``decks/meshes`` (the includes)."""
+    """A directory for mutated decks that sees what they include (:data:`INCLUDED`)."""
     tmp.mkdir(parents=True, exist_ok=True)
-    link = tmp / "meshes"
-    if not link.exists():
-        link.symlink_to(DECKS / "meshes")
+    for target in INCLUDED:
+        link = tmp / target.name
+        if not link.exists():
+            link.symlink_to(target)
     return tmp
+
+
+def source(name: str) -> Path:
+    """The fuzzed deck ``name``: a deck of ``decks/``, or a path from the repository's root."""
+    return ROOT / name if "/" in name else DECKS / name
 
 
 def fuzz_one(name: str, ops: list[tuple], work: Path, increments: int = 2, tag: str = "x"):
     """Mutate deck ``name`` by ``ops``, run and judge it: (deck path, verdict)."""
-    text = mutate((DECKS / name).read_text(), ops)
+    text = mutate(source(name).read_text(), ops)
     deck = deck_dir(work) / f"{Path(name).stem}_{tag}.dat"
     deck.write_text(text)
     out = work / f"out_{tag}"
@@ -366,7 +381,7 @@ def reference(name: str, work: Path, increments: int) -> Verdict:
     key = (name, increments)
     if key not in _REFERENCES:
         tag = f"ref_{Path(name).stem}"
-        text = (DECKS / name).read_text()
+        text = source(name).read_text()
         deck = deck_dir(work) / f"{Path(name).stem}_{tag}.dat"
         deck.write_text(mutate(text, []))
         out = work / f"out_{tag}"
