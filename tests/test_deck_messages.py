@@ -103,6 +103,18 @@ def test_a_trailing_comma_before_plugin_parameters_is_no_continuation(tmp_path):
     assert load_deck(deck).materials["M"].params["E"] == 100
 
 
+@pytest.mark.parametrize("old, new, key", [("1, 1, 0.1, 1", "1, 1, 0.1, 1  ** one increment", "1, 1, 0.1"),
+                                           ("*STEP, NAME=PRESS", "*STEP, NAME=PRESS ** the press", "*STEP")])
+def test_a_comment_after_data_says_so(tmp_path, old, new, key):
+    """A '**' after the data of a line: 'expected ... (found '** one incre')' said nothing of
+    comments."""
+    text = BASE.replace(old, new)
+    _, items = problems(tmp_path, text)
+    p = items[0]
+    assert p.line == line_of(text, key)
+    assert "a comment ('**') must be a line of its own, found one at column" in p.message
+
+
 # ---------------------------------------------------------------- integers
 
 @pytest.mark.parametrize("old, new, key, expected", [

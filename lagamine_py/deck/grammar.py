@@ -234,7 +234,9 @@ class _Grammar:
         kw = pp.Regex(r"\*[ \t]*[A-Za-z][\w\-]*(?:[ \t]+[A-Za-z][\w\-]*)*").set_name("*KEYWORD")
         # a name may hold single spaces (Abaqus's REF NODE=): words until "=", "," or the end
         pname = pp.Regex(r"[A-Za-z_][\w\-]*(?:[ \t]+[A-Za-z_][\w\-]*)*").set_name("parameter name")
-        pvalue = (pp.QuotedString('"') | pp.Regex(r"[^,=\n\"]*[^,=\s\"]")).set_name("parameter value")
+        # no "**" in a value: a comment after a keyword line's parameters is an error, not a name
+        pvalue = (pp.QuotedString('"') | pp.Regex(r"(?:[^,=\n\"*]|\*(?!\*))*[^,=\s\"*]")
+                  ).set_name("parameter value")
         param = pp.Group(pname + pp.Optional(pp.Suppress("=") + pvalue)).set_name("NAME=VALUE")
         kw_line = (kw + pp.ZeroOrMore(comma + param) + pp.Optional(comma)
                    + eol("', NAME=VALUE' or the end of the line")).set_name("keyword line")
@@ -296,6 +298,10 @@ class _Grammar:
             strict.parse_string(text, parse_all=True)
         except pp.ParseBaseException as exc:
             found = text[exc.loc:exc.loc + 12]
+            start = len(text) - len(text.lstrip()) + (what == "keyword line")
+            if "**" in text[start:]:        # Abaqus has no end-of-line comments either
+                return (f"cannot read this {what}: a comment ('**') must be a line of its own, "
+                        f"found one at column {text.index('**', start) + 1}")
             return f"cannot read this {what}: {exc.msg[:1].lower() + exc.msg[1:]} at column {exc.col}" + \
                    (f" (found {found!r})" if found else "")
         return f"cannot read this {what}"
