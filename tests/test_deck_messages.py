@@ -168,3 +168,36 @@ def test_check_prints_the_message_with_file_line_and_keyword(tmp_path, capsys):
     assert main(["check", str(deck)]) == 2
     err = capsys.readouterr().err
     assert f"{deck}:{line_of(BASE, 'MAXIT')}: *CONTROLS: IR = -1 is below its lower bound 0" in err
+
+
+# ---------------------------------------------------------------- check refuses what run refuses
+
+def test_a_solver_that_cannot_run_here_is_refused_by_check(tmp_path, monkeypatch, capsys):
+    """SOLVER=PARDISO without MKL: ``run`` stopped at the start of that step (exit 1, after the
+    steps before it had run and written results); ``check`` said OK.  Both refuse the deck now,
+    at the SOLVER line, before anything runs."""
+    from lagamine_py.solver import linear
+    monkeypatch.setattr(linear, "pardiso_available", lambda: False)     # as without MKL
+    text = BASE.replace("MAXIT=20", "SOLVER=PARDISO")
+    deck, items = problems(tmp_path, text)
+    (p,) = items
+    assert (p.line, p.keyword) == (line_of(text, "SOLVER"), "CONTROLS")
+    assert p.message.startswith("SOLVER=PARDISO: the optional package pypardiso is not installed")
+    assert main(["check", str(deck)]) == 2
+    out = tmp_path / "out"
+    assert main(["run", str(deck), "-o", str(out), "-q"]) == 2
+    assert not out.exists()
+    assert "pypardiso" in capsys.readouterr().err
+
+
+def test_numba_kernels_without_numba_are_refused_by_check(tmp_path, monkeypatch):
+    from lagamine_py import kernels
+    monkeypatch.setattr(kernels, "available", lambda: False)
+    text = BASE.replace("MAXIT=20", "KERNEL=NUMBA")
+    _, items = problems(tmp_path, text)
+    (p,) = items
+    assert (p.line, p.keyword) == (line_of(text, "KERNEL"), "CONTROLS")
+    assert "KERNEL=NUMBA" in p.message and "numba" in p.message.split(":", 1)[1]
+    deck = tmp_path / "ok.dat"                      # the NumPy kernels and AUTO need nothing
+    deck.write_text(BASE.replace("MAXIT=20", "KERNEL=NUMPY"))
+    assert load_deck(deck).steps[0].controls == {"KERNEL": "NUMPY"}

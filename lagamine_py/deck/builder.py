@@ -1510,7 +1510,28 @@ class _Builder(ImportMixin):
                               if isinstance(exc, KeyError) else exc,
                               {pair.key: row.line for row, pair in pairs or ()})
             return
+        if not self._controls_can_run(values, given, pairs):
+            return
         self.step.controls.update({k: v for k, v in values.items() if k.upper() in given})
+
+    def _controls_can_run(self, values, given, pairs) -> bool:
+        """False (after saying why) when the *CONTROLS name a solver or kernel that cannot run
+        here (an optional package missing): ``run`` would stop at that step's start, after the
+        steps before it ran; ``check`` refuses the deck as ``run`` then does, before anything."""
+        line_of = {pair.key: row for row, pair in pairs}
+        why = {}
+        if "SOLVER" in given:
+            why["SOLVER"] = registry.get("solvers", values["SOLVER"]).unavailable()
+        if "KERNEL" in given and values["KERNEL"] == "NUMBA":
+            from .. import kernels
+            why["KERNEL"] = "" if kernels.available() else (
+                "the numba kernels need the optional package numba (pip install "
+                "'lagamine_py[fast]')")
+        for key, reason in why.items():
+            if reason:
+                row = line_of[key]
+                self.pb.add(row.file, row.line, "CONTROLS", f"{key}={values[key]}: {reason}")
+        return not any(why.values())
 
 
 #: largest coordinate magnitude: products of two coordinates (areas, Jacobians) must stay finite
