@@ -115,6 +115,20 @@ def test_a_comment_after_data_says_so(tmp_path, old, new, key):
     assert "a comment ('**') must be a line of its own, found one at column" in p.message
 
 
+@pytest.mark.parametrize("old, new, key, column", [
+    ("1, 1, 0.1, 1", "1, 1,, 0.1, 1", "1, 1,,", 5),
+    ("*STEP, NAME=PRESS", "*STEP,, NAME=PRESS", "*STEP", 6),
+    ("B_LEFT, 1, 1, 0", "B_LEFT, 1, 1, 0,,", "B_LEFT", 16)])
+def test_an_empty_field_says_so(tmp_path, old, new, key, column):
+    """',,' (a trailing comma doubled, a value left out): "expected ',' ... (found ',')" did not
+    say which comma."""
+    text = BASE.replace(old, new)
+    _, items = problems(tmp_path, text)
+    p = items[0]
+    assert p.line == line_of(text, key)
+    assert f"an empty field (',,') at column {column}: a value is missing" in p.message
+
+
 # ---------------------------------------------------------------- integers
 
 @pytest.mark.parametrize("old, new, key, expected", [

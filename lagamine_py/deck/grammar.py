@@ -302,6 +302,10 @@ class _Grammar:
             if "**" in text[start:]:        # Abaqus has no end-of-line comments either
                 return (f"cannot read this {what}: a comment ('**') must be a line of its own, "
                         f"found one at column {text.index('**', start) + 1}")
+            empty = re.search(r",[ \t]*,", text)
+            if empty and empty.start() <= exc.loc:
+                return (f"cannot read this {what}: an empty field (',,') at column "
+                        f"{empty.start() + 1}: a value is missing, or a ',' is one too many")
             return f"cannot read this {what}: {exc.msg[:1].lower() + exc.msg[1:]} at column {exc.col}" + \
                    (f" (found {found!r})" if found else "")
         return f"cannot read this {what}"
