@@ -214,3 +214,11 @@ def test_every_element_type_named_runs(etype, tmp_path, capsys):
     deck.write_text(ELEMENT_DECK.format(etype=etype))
     assert main(["check", str(deck)]) == 0, capsys.readouterr().err
     assert main(["run", str(deck), "-o", str(tmp_path / "out"), "-q"]) == 0, capsys.readouterr().err
+
+
+def test_the_readme_lists_every_controls_key():
+    """The README's extensions to DECKS.md name the *CONTROLS keys: all of them, in order."""
+    from lagamine_py.model import CONTROL_PARAMS
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    listed = re.search(r"`\*CONTROLS` inside a step: `([A-Z, \n]+)`", readme).group(1)
+    assert [k.strip() for k in listed.split(",")] == [p.name for p in CONTROL_PARAMS]
