@@ -129,6 +129,16 @@ def test_an_empty_field_says_so(tmp_path, old, new, key, column):
     assert f"an empty field (',,') at column {column}: a value is missing" in p.message
 
 
+def test_a_data_line_before_any_keyword_is_said_even_with_an_undefined_parameter(tmp_path):
+    """'<DT>, 1' as the deck's first line: only '<DT> is not defined' was said, not that the line
+    stands outside any keyword (the mistake: a *STATIC line moved to the top)."""
+    text = "<DT>, 1, 1e-3, <DT>\n" + BASE
+    _, items = problems(tmp_path, text)
+    first = [p.message for p in items if p.line == 1]
+    assert any("parameter <DT> is not defined" in m for m in first)
+    assert any(m.startswith("data line outside any keyword") for m in first)
+
+
 # ---------------------------------------------------------------- integers
 
 @pytest.mark.parametrize("old, new, key, expected", [

@@ -457,9 +457,12 @@ class _Reader:
                 if not self._keyword(obj, path, label, stack):
                     continue
             elif isinstance(obj, DataLine):
-                obj = self._data(obj, label, keyword)
-                if obj is None:
+                resolved = self._data(obj, label, keyword)
+                if resolved is None:
+                    if not keyword:     # before any keyword: that is said too (by _group)
+                        self.lines.append((label, DataLine(obj.line, [])))
                     continue
+                obj = resolved
                 if keyword == "PARAMETER":
                     self._define(obj, label)
             elif isinstance(obj, BadLine):
