@@ -1,7 +1,15 @@
 """Run-time failures found by ``tools/fuzz_run.py`` (mutated decks), each as the smallest deck
 that showed it; the expectation is read off the deck, not off the program."""
+from pathlib import Path
+
+import pytest
+
 from lagamine_py.cli import main
+from lagamine_py.deck import DeckError, load_deck
 from lagamine_py.results import read_table
+
+#: a blank between a die (moved by *FOUNDATION MOTION) and a punch (REF NODE 1000)
+TOOLS = (Path(__file__).parent / "data" / "tools" / "two_tools.dat").read_text()
 
 APART = """*MESH, NAME=UP, TYPE=Q8PE, X0=0.5, Y0=1, LX=2, LY=1, NX=2, NY=1
 *MESH, NAME=LOW, TYPE=Q8PE, X0=0, Y0=0, LX=3, LY=1, NX=3, NY=1
@@ -35,3 +43,35 @@ def test_two_bodies_moved_apart_beyond_the_search_distance(tmp_path, capsys):
     last = rows["increment"] == rows["increment"].max()
     assert set(rows["status"][last]) <= {"open", "none"}
     assert (rows["p"][last] == 0).all() and (rows["tau"][last] == 0).all()
+
+
+@pytest.mark.parametrize("data, keyword, magnitude", [
+    ("*FOUNDATION MOTION, NAME=DIE\n-1e300, 0", "FOUNDATION MOTION", "a translation of magnitude 1e+300"),
+    ("*BOUNDARY\nBLANK_LEFT, 1, 1, 1e200", "BOUNDARY", "an imposed displacement of magnitude 1e+200"),
+    ("*BOUNDARY\n1000, 2, 2, -1e160", "BOUNDARY", "an imposed displacement of magnitude 1e+160")])
+def test_a_motion_beyond_the_coordinate_bound_is_a_deck_error(tmp_path, capsys, data, keyword, magnitude):
+    """A tool moved by -1e300 (tools/fuzz_run.py seed 912 example 281, two_tools.dat): the run
+    went on with overflowing squares of distances (RuntimeWarnings, a moment of 5e302).  Nodes
+    and foundation points are bounded by COORD_MAX (1e150); a translation or an imposed
+    displacement past it is refused at its line as they are."""
+    from lagamine_py.deck.builder import COORD_MAX
+    assert 1e160 > COORD_MAX
+    text = TOOLS.replace("*FOUNDATION MOTION, NAME=DIE\n0.01, 0", data)
+    deck = tmp_path / "d.dat"
+    deck.write_text(text)
+    with pytest.raises(DeckError) as err:
+        load_deck(deck)
+    (p,) = err.value.items
+    line = text.split("\n").index(data.split("\n")[1]) + 1
+    assert (p.line, p.keyword) == (line, keyword)
+    assert p.message.startswith(f"{magnitude} exceeds 1e+150: products of the positions")
+    assert main(["check", str(deck)]) == 2
+    capsys.readouterr()
+
+
+def test_a_motion_up_to_the_bound_is_read(tmp_path):
+    deck = tmp_path / "d.dat"
+    deck.write_text(TOOLS.replace("*FOUNDATION MOTION, NAME=DIE\n0.01, 0",
+                                  "*FOUNDATION MOTION, NAME=DIE\n1e150, 0\n*BOUNDARY\n1000, 2, 2, -1e150"))
+    step = load_deck(deck).steps[1]
+    assert step.motions[0].dx == 1e150 and step.boundaries[-1].value == -1e150

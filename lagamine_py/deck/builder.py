@@ -1357,6 +1357,11 @@ class _Builder(ImportMixin):
                             f"DOFs must satisfy 1 <= first <= last <= 6 and include 1 (x or r), 2 (y "
                             f"or z) or 6 (the rotation of a tool's reference node), got {first}, {last}")
                 continue
+            if (1 in dofs or 2 in dofs) and not _sane_coordinates(value):
+                self.pb.add(row.file, row.line, blk.keyword,
+                            f"an imposed displacement of magnitude {abs(value):.3g} exceeds "
+                            f"{COORD_MAX:g}: {_MOVED_WHY}")
+                continue
             nodes = self._nodes_of(blk, row, vals[0])
             if nodes is not None and self._rotation_ok(blk, row, nodes, 6 in dofs):
                 self.step.boundaries.append(Boundary(str(vals[0]), nodes, first, last, value,
@@ -1422,6 +1427,11 @@ class _Builder(ImportMixin):
         row, vals = rows[0]
         dx, dy = vals[:2]
         angle = vals[2] if len(vals) > 2 else 0.0
+        if not _sane_coordinates([dx, dy]):
+            self.pb.add(row.file, row.line, blk.keyword,
+                        f"a translation of magnitude {max(abs(dx), abs(dy)):.3g} exceeds "
+                        f"{COORD_MAX:g}: {_MOVED_WHY}")
+            return
         spec = self.m.foundations[name]
         if angle != 0.0 and self.m.axisymmetric:
             self.pb.add(row.file, row.line, blk.keyword, "an angle: in an axisymmetric model a tool does "
@@ -1537,6 +1547,8 @@ class _Builder(ImportMixin):
 #: largest coordinate magnitude: products of two coordinates (areas, Jacobians) must stay finite
 COORD_MAX = 1e150
 _COORD_WHY = "products of coordinates (areas, Jacobians) would overflow; choose another length unit"
+_MOVED_WHY = ("products of the positions it moves to (distances, areas) would overflow; choose "
+              "another length unit")
 
 
 def _sane_coordinates(x) -> bool:
