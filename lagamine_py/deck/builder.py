@@ -1357,11 +1357,6 @@ class _Builder(ImportMixin):
                             f"DOFs must satisfy 1 <= first <= last <= 6 and include 1 (x or r), 2 (y "
                             f"or z) or 6 (the rotation of a tool's reference node), got {first}, {last}")
                 continue
-            if (1 in dofs or 2 in dofs) and not _sane_coordinates(value):
-                self.pb.add(row.file, row.line, blk.keyword,
-                            f"an imposed displacement of magnitude {abs(value):.3g} exceeds "
-                            f"{COORD_MAX:g}: {_MOVED_WHY}")
-                continue
             nodes = self._nodes_of(blk, row, vals[0])
             if nodes is not None and self._rotation_ok(blk, row, nodes, 6 in dofs):
                 self.step.boundaries.append(Boundary(str(vals[0]), nodes, first, last, value,
