@@ -139,6 +139,19 @@ def test_a_data_line_before_any_keyword_is_said_even_with_an_undefined_parameter
     assert any(m.startswith("data line outside any keyword") for m in first)
 
 
+def test_a_mesh_given_twice_is_one_message(tmp_path):
+    """A *MESH line duplicated: 'surface B_BOTTOM is already defined' and three more, one per
+    side; now one, naming the first *MESH's line, and nothing of the second mesh is added."""
+    line = next(l for l in BASE.split("\n") if l.startswith("*MESH"))
+    text = BASE.replace(line, line + "\n" + line)
+    _, items = problems(tmp_path, text)
+    (p,) = items
+    first = line_of(text, "*MESH")
+    assert (p.line, p.keyword) == (first + 1, "MESH")
+    assert p.message == (f"NAME=B: surfaces B_BOTTOM, B_RIGHT, B_TOP, B_LEFT already defined "
+                         f"(line {first}): give this *MESH another NAME")
+
+
 # ---------------------------------------------------------------- integers
 
 @pytest.mark.parametrize("old, new, key, expected", [

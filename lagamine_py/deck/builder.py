@@ -482,6 +482,14 @@ class _Builder(ImportMixin):
             self.pb.at(blk, f"*MESH cannot fill a rectangle with {grp.type} elements (the element "
                             f"type declares no cell_elements)")
             return
+        taken = [f"{name}_{side}" for side in SIDES if f"{name}_{side}" in self.m.surfaces]
+        if taken:           # one message, not one per side (a *MESH line given twice, say)
+            at = self.m.surfaces[taken[0]].where
+            where = "" if at is None else (f" (line {at.line})" if at.file == blk.file
+                                           else f" ({at.file}:{at.line})")
+            self.pb.at(blk, f"NAME={name}: surface{'s' * (len(taken) > 1)} {', '.join(taken)} "
+                            f"already defined{where}: give this *MESH another NAME")
+            return
         nx, ny = params["NX"], params["NY"]
         if (grp.cls.grid_order * nx + 1) * (grp.cls.grid_order * ny + 1) > 5_000_000:
             self.pb.at(blk, f"NX={nx}, NY={ny} makes too many nodes")
@@ -498,9 +506,6 @@ class _Builder(ImportMixin):
         for side in SIDES:
             key = f"{name}_{side}"
             self._add_nset(key, node_rows[mesh.side_nodes[side]])
-            if key in self.m.surfaces:
-                self.pb.at(blk, f"surface {key} is already defined")
-                continue
             elems, faces = mesh.side_faces[side]
             self.m.surfaces[key] = Surface(key, eids[elems], faces, blk.where)
 
