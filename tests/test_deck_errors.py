@@ -301,7 +301,8 @@ def test_nodes_at_the_same_place_are_pointed_out(tmp_path):
                     "*SOLID, ELSET=ALL, MATERIAL=M\n*STEP\n*STATIC\n1, 1\n*END STEP\n")
     m = load_deck(deck)
     (notice,) = m.notices
-    assert notice.startswith(f"{deck}:1: *NODE: 3 places of the mesh hold more than one node")
+    # at the line that made the first of them, under its keyword (*MESH, not *NODE)
+    assert notice.startswith(f"{deck}:1: *MESH: 3 places of the mesh hold more than one node")
     # the independent count: the right side of A (x = 1) has 3 nodes, as has the left side of B
     at_one = np.flatnonzero(np.isclose(m.coords[:, 0], 1.0))
     assert len(at_one) == 6

@@ -20,8 +20,7 @@ fuzz = importlib.util.module_from_spec(_spec)
 sys.modules["fuzz_run"] = fuzz                 # its dataclasses look their module up
 _spec.loader.exec_module(fuzz)
 
-OPS = st.lists(st.tuples(st.sampled_from(("number", "number", "number", "drop", "dup", "swap",
-                                          "param")),
+OPS = st.lists(st.tuples(st.sampled_from(fuzz.KINDS),
                          st.integers(0, 10**6), st.integers(0, 10**6), st.integers(0, 10**6)),
                min_size=1, max_size=4)
 
@@ -66,6 +65,69 @@ def test_the_judge_sees_nan_tracebacks_and_warnings(tmp_path, monkeypatch):
     assert "exit status 1" in verdict.problems
     assert "stderr holds 'unexpected error'" in verdict.problems
     assert any(p.startswith("RuntimeWarning: overflow") for p in verdict.problems)
+
+
+def test_the_judge_sees_check_and_run_disagree(tmp_path, monkeypatch):
+    """A deck ``check`` accepts and ``run`` refuses (a step that cannot start), or the other way
+    round: each is a disagreement."""
+    from lagamine_py.solver import steps
+
+    def cannot_start(self, si, step):
+        raise steps.SetupError(f"step {si + 1} ({step.name}): *CONTROLS: refused at setup")
+    monkeypatch.setattr(steps.Controller, "_setup_step", cannot_start)
+    _, verdict = fuzz.fuzz_one("coulomb_block.dat", [], tmp_path, tag="setup")
+    assert verdict.check == 0 and verdict.status == 1
+    assert "check accepts a step that run cannot start (exit 1)" in verdict.problems
+    assert fuzz.disagreement(0, 2, "") == ["check accepts what run refuses (exit 2)"]
+    assert fuzz.disagreement(2, 3, "") == ["check refuses (exit 2) what run runs (exit 3)"]
+    assert fuzz.disagreement(2, 2, "") == fuzz.disagreement(0, 3, "") == []
+
+
+def test_the_judge_compares_neutral_forms_with_the_deck_as_written(tmp_path, monkeypatch):
+    """Form-only mutations (CRLF, tabs, case ...) must not change check's summary nor the run;
+    the judge sees a difference when the reader is made to drop the deck's last step."""
+    ops = [("form", 0, fuzz.FORMS.index("crlf"), 0)]
+    assert fuzz.neutral(ops) and not fuzz.neutral(ops + [("drop", 0, 0, 0)])
+    _, verdict = fuzz.fuzz_one("coulomb_block.dat", ops, tmp_path, tag="crlf")
+    assert not verdict.bad, verdict.problems
+    from lagamine_py import deck as deck_pkg
+    real = deck_pkg.load_deck
+
+    def short(path, parameters=None):
+        model = real(path, parameters=parameters)
+        if "\r" in Path(path).read_text(newline=""):
+            model.steps = model.steps[:1]
+        return model
+    monkeypatch.setattr(deck_pkg, "load_deck", short)
+    _, verdict = fuzz.fuzz_one("coulomb_block.dat", ops, tmp_path, tag="crlf2")
+    assert any(p.startswith("check differs from the deck as written") for p in verdict.problems)
+    assert any(p.startswith("run differs from the deck as written") for p in verdict.problems)
+
+
+@pytest.mark.parametrize("form, line, expected", [
+    ("lower", "*STEP, NAME=PUSH", "*step, NAME=PUSH"),
+    ("lower", "BLOCK_LEFT, 1, 1, 0.05", "block_left, 1, 1, 0.05"),
+    ("tabs", "BLOCK_LEFT, 1, 1, 0.05", "BLOCK_LEFT,\t1,\t1,\t0.05"),
+    ("trailing", "BLOCK_LEFT, 1, 1, 0.05", "BLOCK_LEFT, 1, 1, 0.05,"),
+    ("split", "*STEP, NAME=PUSH", "*STEP,\nNAME=PUSH"),
+    ("indent", "*STEP, NAME=PUSH", "\t*STEP, NAME=PUSH"),
+    ("inline", "BLOCK_LEFT, 1, 1, 0.05", "BLOCK_LEFT, 1, 1, 0.05  ** a note")])
+def test_form_mutations(form, line, expected):
+    assert "\n".join(fuzz._form([line], form, 0, 1)) == expected
+
+
+def test_control_mutations_cover_every_controls_key():
+    """Every *CONTROLS key is drawn, with values past its bounds and a bad word."""
+    text = (fuzz.DECKS / "coulomb_block.dat").read_text()
+    params = fuzz.control_params()
+    seen = set()
+    for b in range(len(params)):
+        out = fuzz.mutate(text, [("control", 0, b, 1)])
+        assert "*CONTROLS\n" in out
+        seen.add(out.split("*CONTROLS\n")[1].split("=")[0].upper())
+    assert seen == {p.name for p in params}
+    ir = next(p for p in params if p.name == "IR")
+    assert {"-1", "1001", "2.5", "CUBIC", ""} <= set(fuzz._control_values(ir))
 
 
 @pytest.mark.parametrize("ops, changed", [

@@ -128,8 +128,10 @@ class Param:
         if not math.isfinite(float(value)):
             raise ParamError(f"{self.name} must be finite, got {value!r}")
         if self.type is int:
-            if float(value) != int(value) or abs(value) > INT_MAX:
-                raise ParamError(f"{self.name} must be an integer below 2^31, got {raw!r}")
+            if float(value) != int(value):
+                raise ParamError(f"{self.name} must be an integer, got {raw!r}")
+            if abs(value) > INT_MAX:
+                raise ParamError(f"{self.name} must be below 2^31, got {raw!r}")
             value = int(value)
         else:
             value = float(value)

@@ -32,7 +32,7 @@ from ..model import (CONTROL_PARAMS, OUTPUT_FIELDS, Amplitude, Boundary, CLoad, 
                      MaterialSpec, Model, OutputRequest, Stabilisation, Step, Surface, Where)
 from . import abaqus
 from .errors import Problems
-from .grammar import Block, Num, NumberRows
+from .grammar import Block, DataRow, Num, NumberRows, Pair
 from .imports import ImportMixin
 from .keywords import KEYWORDS, check_data, check_params, data_spec
 from .mesh import ElementGroup, ElementIndex, Files, NodeTable, face_table
@@ -255,7 +255,7 @@ class _Builder(ImportMixin):
             return
         if kw == "STEP" and not self.model_done:
             self._finish_model()
-        if blk.broken:
+        if blk.broken or (blk.continued and self._continued(blk, spec)):
             params = None
         else:
             params = check_params(spec, blk, self.pb)
@@ -273,6 +273,24 @@ class _Builder(ImportMixin):
             if kw not in ("STEP", "END STEP") and (kw not in _PARTIAL_OK or data is None):
                 return
         getattr(self, "_kw_" + kw.lower().replace(" ", "_"))(blk, params, data)
+
+    def _continued(self, blk: Block, spec) -> bool:
+        """True (after saying so) when the keyword line ends with ',' and the next line gives
+        parameters of the keyword: Abaqus reads such a line on, this language does not (the next
+        line would be data, and a data line of ``KEY=VALUE`` pairs is a plugin's parameters)."""
+        row = blk.data[0] if blk.data else None
+        if not isinstance(row, DataRow) or not row.items or not all(
+                isinstance(it, Pair) for it in row.items):
+            return False
+        names = {p.name for p in spec.params}
+        keys = [it.key for it in row.items if it.key in names]
+        if not keys:
+            return False
+        self.pb.add(row.file, row.line, blk.keyword,
+                    f"{', '.join(keys)} {'is a parameter' if len(keys) == 1 else 'are parameters'} of "
+                    f"*{blk.keyword}: write {'it' if len(keys) == 1 else 'them'} on the keyword line "
+                    f"(line {blk.line}); a keyword line ending with ',' does not go on to the next line")
+        return True
 
     def _scope(self, blk: Block, spec) -> bool:
         kw = blk.keyword
@@ -464,6 +482,14 @@ class _Builder(ImportMixin):
             self.pb.at(blk, f"*MESH cannot fill a rectangle with {grp.type} elements (the element "
                             f"type declares no cell_elements)")
             return
+        taken = [f"{name}_{side}" for side in SIDES if f"{name}_{side}" in self.m.surfaces]
+        if taken:           # one message, not one per side (a *MESH line given twice, say)
+            at = self.m.surfaces[taken[0]].where
+            where = "" if at is None else (f" (line {at.line})" if at.file == blk.file
+                                           else f" ({at.file}:{at.line})")
+            self.pb.at(blk, f"NAME={name}: surface{'s' * (len(taken) > 1)} {', '.join(taken)} "
+                            f"already defined{where}: give this *MESH another NAME")
+            return
         nx, ny = params["NX"], params["NY"]
         if (grp.cls.grid_order * nx + 1) * (grp.cls.grid_order * ny + 1) > 5_000_000:
             self.pb.at(blk, f"NX={nx}, NY={ny} makes too many nodes")
@@ -480,9 +506,6 @@ class _Builder(ImportMixin):
         for side in SIDES:
             key = f"{name}_{side}"
             self._add_nset(key, node_rows[mesh.side_nodes[side]])
-            if key in self.m.surfaces:
-                self.pb.at(blk, f"surface {key} is already defined")
-                continue
             elems, faces = mesh.side_faces[side]
             self.m.surfaces[key] = Surface(key, eids[elems], faces, blk.where)
 
@@ -1224,7 +1247,9 @@ class _Builder(ImportMixin):
                          + f" at ({xy[members[0], 0]:.6g}, {xy[members[0], 1]:.6g})")
         n = int((count > 1).sum())
         f, ln = self.nodes.where(int(self._old_row(order[0])))
-        self._notice(f, ln, "NODE", f"{n} place{'s' * (n > 1)} of the mesh hold{'s' * (n == 1)} more than "
+        # the line that made the node: a *NODE data line, or a *MESH or *IMPORT keyword line
+        kw = next((b.keyword for b in self.blocks if (b.file, b.line) == (f, ln)), "NODE")
+        self._notice(f, ln, kw, f"{n} place{'s' * (n > 1)} of the mesh hold{'s' * (n == 1)} more than "
                                     f"one node, which are not joined (merge them if they should be): "
                                     + "; ".join(pairs) + (" ..." if n > 5 else ""))
 
@@ -1402,6 +1427,11 @@ class _Builder(ImportMixin):
         row, vals = rows[0]
         dx, dy = vals[:2]
         angle = vals[2] if len(vals) > 2 else 0.0
+        if not _sane_coordinates([dx, dy]):
+            self.pb.add(row.file, row.line, blk.keyword,
+                        f"a translation of magnitude {max(abs(dx), abs(dy)):.3g} exceeds "
+                        f"{COORD_MAX:g}: {_MOVED_WHY}")
+            return
         spec = self.m.foundations[name]
         if angle != 0.0 and self.m.axisymmetric:
             self.pb.add(row.file, row.line, blk.keyword, "an angle: in an axisymmetric model a tool does "
@@ -1490,12 +1520,35 @@ class _Builder(ImportMixin):
                               if isinstance(exc, KeyError) else exc,
                               {pair.key: row.line for row, pair in pairs or ()})
             return
+        if not self._controls_can_run(values, given, pairs):
+            return
         self.step.controls.update({k: v for k, v in values.items() if k.upper() in given})
+
+    def _controls_can_run(self, values, given, pairs) -> bool:
+        """False (after saying why) when the *CONTROLS name a solver or kernel that cannot run
+        here (an optional package missing): ``run`` would stop at that step's start, after the
+        steps before it ran; ``check`` refuses the deck as ``run`` then does, before anything."""
+        line_of = {pair.key: row for row, pair in pairs}
+        why = {}
+        if "SOLVER" in given:
+            why["SOLVER"] = registry.get("solvers", values["SOLVER"]).unavailable()
+        if "KERNEL" in given and values["KERNEL"] == "NUMBA":
+            from .. import kernels
+            why["KERNEL"] = "" if kernels.available() else (
+                "the numba kernels need the optional package numba (pip install "
+                "'lagamine_py[fast]')")
+        for key, reason in why.items():
+            if reason:
+                row = line_of[key]
+                self.pb.add(row.file, row.line, "CONTROLS", f"{key}={values[key]}: {reason}")
+        return not any(why.values())
 
 
 #: largest coordinate magnitude: products of two coordinates (areas, Jacobians) must stay finite
 COORD_MAX = 1e150
 _COORD_WHY = "products of coordinates (areas, Jacobians) would overflow; choose another length unit"
+_MOVED_WHY = ("products of the positions it moves to (distances, areas) would overflow; choose "
+              "another length unit")
 
 
 def _sane_coordinates(x) -> bool:
@@ -1514,7 +1567,7 @@ def _split_param_error(message: str) -> list[str]:
     """The parts of a ParamError message ('; '-joined), keeping each 'expected one of' with its part."""
     parts: list[str] = []
     for piece in message.split("; "):
-        if piece.startswith("expected ") and parts:
+        if piece.startswith(("expected ", "installed: ")) and parts:
             parts[-1] += "; " + piece
         else:
             parts.append(piece)

@@ -50,9 +50,15 @@ class Problems:
 
     def __init__(self):
         self.items: list[DeckProblem] = []
+        self._seen: set[DeckProblem] = set()
 
     def add(self, file: str, line: int, keyword: str, message: str) -> None:
-        self.items.append(DeckProblem(str(file), int(line), keyword, message))
+        """Add a problem; the same problem again (``KP=<X>, KT=<X>``: two fields of a line
+        naming the same undefined parameter) is said once."""
+        item = DeckProblem(str(file), int(line), keyword, message)
+        if item not in self._seen:
+            self._seen.add(item)
+            self.items.append(item)
 
     def at(self, where, message: str, line: int | None = None) -> None:
         """Add a problem at a block (anything with ``file``, ``line``, ``keyword``)."""

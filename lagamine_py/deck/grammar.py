@@ -80,6 +80,7 @@ class KeywordLine:
     line: int
     keyword: str                                  # upper case, single spaces: "CONTACT LAW"
     params: list[tuple[str, str | None]]          # (NAME upper, raw value or None for a flag)
+    continued: bool = False                       # it ends with ',' (Abaqus would read on)
 
 
 @dataclass
@@ -170,6 +171,7 @@ class Block:
     data: list[DataRow | NumberRows] = field(default_factory=list)
     text: list[str] = field(default_factory=list)          # *HEADING free text
     broken: bool = False      # its keyword line could not be read (already reported)
+    continued: bool = False   # its keyword line ends with ',' (parameters on the next line?)
 
     @property
     def where(self) -> Where:
@@ -232,7 +234,9 @@ class _Grammar:
         kw = pp.Regex(r"\*[ \t]*[A-Za-z][\w\-]*(?:[ \t]+[A-Za-z][\w\-]*)*").set_name("*KEYWORD")
         # a name may hold single spaces (Abaqus's REF NODE=): words until "=", "," or the end
         pname = pp.Regex(r"[A-Za-z_][\w\-]*(?:[ \t]+[A-Za-z_][\w\-]*)*").set_name("parameter name")
-        pvalue = (pp.QuotedString('"') | pp.Regex(r"[^,=\n\"]*[^,=\s\"]")).set_name("parameter value")
+        # no "**" in a value: a comment after a keyword line's parameters is an error, not a name
+        pvalue = (pp.QuotedString('"') | pp.Regex(r"(?:[^,=\n\"*]|\*(?!\*))*[^,=\s\"*]")
+                  ).set_name("parameter value")
         param = pp.Group(pname + pp.Optional(pp.Suppress("=") + pvalue)).set_name("NAME=VALUE")
         kw_line = (kw + pp.ZeroOrMore(comma + param) + pp.Optional(comma)
                    + eol("', NAME=VALUE' or the end of the line")).set_name("keyword line")
@@ -274,7 +278,9 @@ class _Grammar:
     def _kw_line(self, s, loc, t):
         params = [(" ".join(g[0].split()).upper(), g[1].strip() if len(g) > 1 else None)
                   for g in t[1:]]
-        return KeywordLine(self.lineno(loc), _keyword_name(t[0]), params)
+        end = s.find("\n", loc)
+        continued = s[loc:end if end >= 0 else len(s)].rstrip(" \t\r").endswith(",")
+        return KeywordLine(self.lineno(loc), _keyword_name(t[0]), params, continued)
 
     def parse_text(self, text: str, offset: int = 0) -> list:
         """Line objects of a stretch of a file's text that starts after line ``offset``."""
@@ -292,6 +298,14 @@ class _Grammar:
             strict.parse_string(text, parse_all=True)
         except pp.ParseBaseException as exc:
             found = text[exc.loc:exc.loc + 12]
+            start = len(text) - len(text.lstrip()) + (what == "keyword line")
+            if "**" in text[start:]:        # Abaqus has no end-of-line comments either
+                return (f"cannot read this {what}: a comment ('**') must be a line of its own, "
+                        f"found one at column {text.index('**', start) + 1}")
+            empty = re.search(r",[ \t]*,", text)
+            if empty and empty.start() <= exc.loc:
+                return (f"cannot read this {what}: an empty field (',,') at column "
+                        f"{empty.start() + 1}: a value is missing, or a ',' is one too many")
             return f"cannot read this {what}: {exc.msg[:1].lower() + exc.msg[1:]} at column {exc.col}" + \
                    (f" (found {found!r})" if found else "")
         return f"cannot read this {what}"
@@ -307,6 +321,7 @@ GRAMMAR = _Grammar()
 # ---------------------------------------------------------------- parameters, includes, blocks
 
 _REF = re.compile(r"<([A-Za-z_]\w*)>")
+_LONE_CR = re.compile(r"\r(?!\n)")
 _NUMERIC_START = frozenset("0123456789+-.")
 _NUMERIC_CHARS = re.compile(r"[0-9\s,.+\-eEdD]*")
 _HEADING = re.compile(r"[ \t]*\*[ \t]*HEADING[ \t\r]*", re.IGNORECASE)
@@ -418,6 +433,8 @@ class _Reader:
             return
         self.digest.update(b"%d\0" % len(raw) + raw)
         text = raw.decode("utf-8-sig", errors="replace")      # a UTF-8 BOM is no text
+        if "\r" in text:       # a CR alone ends a line too (old Mac OS files; CRLF stays CRLF)
+            text = _LONE_CR.sub("\n", text)
         for first, lines, bulk in _segments(text):
             rows = _number_rows(lines, label, first) if bulk and len(lines) >= BULK_MIN_LINES else None
             if rows is not None:
@@ -440,9 +457,12 @@ class _Reader:
                 if not self._keyword(obj, path, label, stack):
                     continue
             elif isinstance(obj, DataLine):
-                obj = self._data(obj, label, keyword)
-                if obj is None:
+                resolved = self._data(obj, label, keyword)
+                if resolved is None:
+                    if not keyword:     # before any keyword: that is said too (by _group)
+                        self.lines.append((label, DataLine(obj.line, [])))
                     continue
+                obj = resolved
                 if keyword == "PARAMETER":
                     self._define(obj, label)
             elif isinstance(obj, BadLine):
@@ -573,7 +593,7 @@ def _group(lines, problems: Problems) -> list[Block]:
                 if name in params:
                     problems.add(file, obj.line, obj.keyword, f"parameter {name} is given twice")
                 params[name] = value
-            blocks.append(Block(obj.keyword, params, file, obj.line))
+            blocks.append(Block(obj.keyword, params, file, obj.line, continued=obj.continued))
         elif isinstance(obj, BadLine):
             kw = _bad_keyword(obj.text)
             # past a few screens of messages nobody reads the reasons: skip the re-parse

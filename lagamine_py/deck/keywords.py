@@ -311,14 +311,17 @@ def _convert_cell(col: Col, tok) -> Any:
         if not math.isfinite(tok):
             raise ValueError(f"{col.label} must be finite, got {tok.text!r}")
         if col.type == "int":
-            if tok != int(tok) or abs(tok) > _INT_MAX:
-                raise ValueError(f"{col.label} must be an integer below 2^31, got {tok.text!r}")
+            if tok != int(tok):
+                raise ValueError(f"{col.label} must be an integer, got {tok.text!r}")
+            if abs(tok) > _INT_MAX:
+                raise ValueError(f"{col.label} must be below 2^31, got {tok.text!r}")
             return int(tok)
         return float(tok)
     if col.type == "ref":
         if isinstance(tok, Num):
             if not math.isfinite(tok) or tok != int(tok) or abs(tok) > _INT_MAX:
-                raise ValueError(f"{col.label} must be an integer id below 2^31 or a set name, got {tok.text!r}")
+                what = "below 2^31" if math.isfinite(tok) and tok == int(tok) else "an integer"
+                raise ValueError(f"{col.label} must be an id ({what}) or a set name, got {tok.text!r}")
             return int(tok)
         return str(tok).upper()
     if col.type == "face":
@@ -444,11 +447,14 @@ def check_pairs(block: Block, problems: Problems) -> list[tuple[DataRow, Pair]] 
     out, seen, ok = [], {}, True
     for row in (r for item in block.data
                 for r in (item.rows() if isinstance(item, NumberRows) else [item])):
+        others = [getattr(tok, "text", str(tok)) for tok in row.items if not isinstance(tok, Pair)]
+        if others:          # one message for the line (a line of numbers is one mistake)
+            problems.add(row.file, row.line, block.keyword,
+                         f"expected KEY=VALUE pairs, got {', '.join(others)!r}")
+            ok = False
         for tok in row.items:
             if not isinstance(tok, Pair):
-                problems.add(row.file, row.line, block.keyword,
-                             f"expected KEY=VALUE pairs, got {getattr(tok, 'text', str(tok))!r}")
-                ok = False
+                continue
             elif tok.key in seen:
                 problems.add(row.file, row.line, block.keyword,
                              f"{tok.key} is given twice (first on line {seen[tok.key]})")

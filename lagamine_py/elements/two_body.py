@@ -235,7 +235,8 @@ class TwoBodyGroup(ContactGroup):
         if self.window is not None and np.array_equal(near, self._near):
             return False
         self._near = near
-        K = int(near.sum(axis=1).max(initial=0))
+        # at least one window column: -1 (no face) everywhere when the bodies are apart
+        K = max(int(near.sum(axis=1).max(initial=0)), 1)
         order = np.argsort(~near, axis=1, kind="stable")[:, :K]
         win = np.where(np.take_along_axis(near, order, axis=1), order, -1)   # (f, K)
         # the window's nodes, unique per face, padded by repeating the first (zero columns)
@@ -253,7 +254,8 @@ class TwoBodyGroup(ContactGroup):
         # slot (f, K, 3) of each window face's node among the face's window nodes
         fn = self.master.face_nodes[np.maximum(win, 0)]                    # (f, K, 3)
         hit = (fn[:, :, :, None] == wn[:, None, None, :]) & valid[:, None, None, :]
-        slot = np.argmax(hit, axis=-1)
+        # no master face near any slave face (the bodies apart): empty windows, no slots
+        slot = np.argmax(hit, axis=-1) if M else np.zeros(fn.shape, np.int64)
         self.window, self._slot, self._wnodes = win, slot, wn
         self.nw = self.nd + 2 * M
         mdofs = (2 * wn[:, :, None] + np.arange(2)).reshape(self.nf, 2 * M)
