@@ -164,7 +164,7 @@ class RambergOsgood(J2Plasticity):
         return RAMBERG_OSGOOD, p, np.ascontiguousarray(self.D_elastic, dtype=float)
 
 
-def safeguarded_newton(fun, lo, hi, tol, max_iter, quad=0.0):
+def safeguarded_newton(fun, lo, hi, tol, max_iter, quad=np.inf):
     """Roots of increasing scalar functions, batched: Newton from ``hi``, bisection fallback.
 
     ``fun(x, k) -> (g, dg)`` evaluates the residuals of the points ``k`` (``slice(None)``, every
@@ -173,7 +173,7 @@ def safeguarded_newton(fun, lo, hi, tol, max_iter, quad=0.0):
     A Newton step that leaves the current bracket is replaced by bisection, so the iteration
     cannot diverge.  Returns ``(x, converged)``: converged after a Newton step d with
     ``|d| <= tol`` or ``quad d^2 <= tol`` (``quad``: a bound on the next iterate's error over
-    d^2, ``kernels.layout.QUAD_Y``; 0: the step alone), or where the bracket is narrower.
+    d^2, ``kernels.layout.QUAD_Y``; inf: the step alone), or where the bracket is narrower.
     """
     lo, hi = lo.astype(float), hi.astype(float)
     x = hi.copy()
