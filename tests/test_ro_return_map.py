@@ -119,7 +119,7 @@ def test_quadratic_stop_saves_the_confirming_evaluation():
         assert ok.all(), name
         assert ln_error(q, q_ex) <= 2e-13 and ln_error(peeq, p_ex) <= 2e-13, name
     # the step rule alone (quad = inf) needs a third evaluation at these points: the test has teeth
-    G3, n = 3.0 * ro.G, 2.0
+    n = 2.0
     y_hi = ro._a + n * np.log(q_tr)
     y_lo = np.log(peeq_n)
     for quad, converged in ((np.inf, False), (QUAD_Y, True)):
