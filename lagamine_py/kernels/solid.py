@@ -79,6 +79,7 @@ def _quad_x(n):
     """``layout.quad_x``: the x = ln q branch's error factor."""
     return 1.0 + n
 
+
 @njit(**_JIT)
 def _ro_residual(by_q, x, qt, pn, G3, a, n):
     """``_g_q`` (by_q, x = ln q) or ``_g_p`` (x = ln P): the residual, the Newton step
