@@ -14,7 +14,8 @@ CSR data and force vectors:
 * ``--save F``: every answer (the scattered data and force, the element forces, the trial
   state, the failure) to ``F`` (npz) and the calls to ``F.calls.pickle``; ``--check F``: the
   saved calls replayed and their answers compared bit for bit with ``F`` (exit 1 on any
-  difference).  Save with one tree and check with another (``PYTHONPATH=<tree> python
+  difference; with ``--rtol R``, on any array whose finite entries differ by more than ``R``
+  times its largest entry, or whose failures or non-finite entries differ).  Save with one tree and check with another (``PYTHONPATH=<tree> python
   tools/kernel_calls.py ...``): a change that keeps every byte keeps every run's path.
 
 ``--plastic NXxNY [--element Q8PE] [--law RAMBERG_OSGOOD]``: instead, the ``tools/bench.py
@@ -147,6 +148,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--save")
     ap.add_argument("--check")
+    ap.add_argument("--rtol", type=float, help="--check to this relative tolerance (of each "
+                    "array's largest entry), not bit for bit")
     a = ap.parse_args(argv)
     if a.plastic:
         print(plastic_block(a.plastic, a.element, a.repeat, a.law))
@@ -157,7 +160,7 @@ def main(argv=None) -> int:
         print(f"{what}: {ne} solid elements, {len(calls)} of the run's {total} fused "
               f"evaluations replayed")
         got.update(answers(calls, f"{what}/"))
-    code = save_or_check(a.save, a.check, runs, got)
+    code = save_or_check(a.save, a.check, runs, got, rtol=a.rtol)
     for what, (calls, _) in runs.items():
         elements = np.mean([len(c[0].conn) for c in calls])
         print(what)

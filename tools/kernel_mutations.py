@@ -3,8 +3,11 @@
 Each mutation below breaks one branch of a numba kernel (``lagamine_py/kernels/solid.py``,
 ``lagamine_py/kernels/contact.py``) -- or, to show that the comparison is two-sided, of a NumPy
 reference -- by replacing one exact piece of source text.  The tool applies them one at a time,
-runs ``pytest -x -q tests/test_kernel_twins.py tests/test_solid_lanes.py`` (the second: the
-solid kernel's blocks of several ``LANES`` elements and a remainder; numba recompiles the
+runs ``pytest -x -q tests/test_kernel_twins.py tests/test_solid_lanes.py
+tests/test_ro_return_map.py`` (the second: the solid kernel's blocks of several ``LANES``
+elements and a remainder; the third: the Ramberg-Osgood return map against closed forms, where a
+mutant that changes the iterations but not the answers beyond the twins' tolerance is caught;
+numba recompiles the
 mutated module: its cache is keyed on the source file's time stamp), always restores the file
 (also on an error or Ctrl-C), and prints a table: the mutation and the test that caught it, or
 SURVIVED.
@@ -41,6 +44,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TEST = "tests/test_kernel_twins.py"
+#: the Ramberg-Osgood return map point by point against closed forms (kernel and NumPy law)
+LAW_TEST = "tests/test_ro_return_map.py"
 #: the solid kernel's blocks of several LANES elements and a remainder, run after TEST
 LANES_TEST = "tests/test_solid_lanes.py"
 SOLID = "lagamine_py/kernels/solid.py"
@@ -78,20 +83,25 @@ MUTATIONS = [
       "        if not math.isfinite(stress[s]):\n            ok = False",
       "        if False:\n            ok = False"),
     M("solid: RO branch swap (ln q <-> ln P)", SOLID,
-      "    if by_q:\n        x, ok = _safeguarded_newton(True",
-      "    if not by_q:\n        x, ok = _safeguarded_newton(True"),
+      "    if by_q:\n        x_star, ln_qt = math.log(q_star), math.log(qt)",
+      "    if not by_q:\n        x_star, ln_qt = math.log(q_star), math.log(qt)"),
     M("solid: RO branch choice without the residual test", SOLID,
-      "by_q = (x_star >= hi) or (_ro_residual(True, _nmin(x_star, hi), qt, pn, G3, a, n)[0] "
-      ">= 0.0)", "by_q = (x_star >= hi)"),
+      "by_q = a + n * x_star - y_hi >= 0.0", "by_q = False"),
+    M("solid: RO branch choice's q* < q_tr test reversed", SOLID,
+      "if q_star < qt and p_star > 0.0:", "if q_star > qt and p_star > 0.0:"),
     M("solid: RO residual in ln q, sign of ln P", SOLID,
-      "return a + n * x - math.log(P), n + q / (G3 * P)",
-      "return a + n * x + math.log(P), n + q / (G3 * P)"),
+      "g = a + n * x - math.log(P)", "g = a + n * x + math.log(P)"),
     M("solid: RO residual in ln P, sign of a", SOLID,
-      "return x - a - n * math.log(q), 1.0 + n * G3 * P / q",
-      "return x + a - n * math.log(q), 1.0 + n * G3 * P / q"),
+      "g = x - a - n * math.log(q)", "g = x + a - n * math.log(q)"),
+    M("solid: RO Newton step in ln P without its n 3G P / q", SOLID,
+      "return g, g * q / (q + n * G3 * P), P", "return g, g * q / (q + G3 * P), P"),
+    M("solid: RO Newton step in ln q without its q / 3G P", SOLID,
+      "return g, g * (G3 * P) / (n * (G3 * P) + q), q", "return g, g * (G3 * P) / (n * (G3 * P)), q"),
     M("solid: RO bracket upper end from q_tr only", SOLID,
-      "hi = _nmin(math.log(qt), _ro_log_yield(pn + qt / G3, a, n))",
-      "hi = _nmax(math.log(qt), _ro_log_yield(pn + qt / G3, a, n))"),
+      "hi = _nmin(ln_qt, _ro_log_yield(pn + qt / G3, a, n))",
+      "hi = _nmax(ln_qt, _ro_log_yield(pn + qt / G3, a, n))"),
+    M("solid: RO ln P's start without the bound ln peeq(q_tr)", SOLID,
+      "y_hi = _nmin(y_hi, a + n * math.log(qt))", "y_hi = y_hi"),
     M("control: RO bracket of ln P, lower end lowered", SOLID,
       "y_lo = _nmax(ln_pn, a + n * x_star)", "y_lo = _nmin(ln_pn, a + n * x_star)",
       equivalent="Newton from the upper end of a convex increasing residual decreases "
@@ -100,8 +110,23 @@ MUTATIONS = [
       "sy_n = math.exp((ln_pn - lp[_A]) / lp[_N])",
       "sy_n = math.exp((ln_pn - lp[_A]) / lp[_N]) if peeq_n > 0.0 else math.inf"),
     M("solid: RO Newton never converges by its step", SOLID,
-      "done = (newton and abs(x_new - x) <= tol) or (hi - lo <= tol) or (g == 0.0)",
-      "done = (hi - lo <= tol) or (g == 0.0)"),
+      "if newton and (abs(step) <= tol or quad * step * step <= tol or g == 0.0):",
+      "if False:"),
+    M("solid: RO Newton stops by the step alone (the quadratic bound dropped)", SOLID,
+      "if newton and (abs(step) <= tol or quad * step * step <= tol or g == 0.0):",
+      "if newton and (abs(step) <= tol or g == 0.0):"),
+    M("solid: RO quadratic stop 1e6 times too loose in ln P", SOLID,
+      "tol, QUAD_Y, max_iter", "tol, 1e-6 * QUAD_Y, max_iter"),
+    M("solid: RO answer's exp by the Taylor factor's wrong sign", SOLID,
+      "return x_newton, ex * (1.0 - step + 0.5 * step * step), True",
+      "return x_newton, ex * (1.0 + step + 0.5 * step * step), True"),
+    M("control: RO answer's exp without the Taylor factor's d^2 / 2", SOLID,
+      "return x_newton, ex * (1.0 - step + 0.5 * step * step), True",
+      "return x_newton, ex * (1.0 - step), True",
+      equivalent="d^2/2 <= tol / (2 quad) <= tol / 4 where the quadratic rule stops: within "
+                 "the law's tolerance; the tests assert the answers to 2e-13"),
+    M("solid: RO bisection fallback dropped", SOLID,
+      "x_new = x_newton if newton else 0.5 * (lo + hi)", "x_new = x_newton"),
     M("solid: RO tangent dq/dq_tr without peeq", SOLID,
       "return q, peeq, q / (q + G3 * n * peeq), ok", "return q, peeq, q / (q + G3 * n), ok"),
     M("solid: plastic elastic strain without its volume part", SOLID,
@@ -426,6 +451,13 @@ MUTATIONS = [
       "dp = (q_tr - self.yield_stress(peeq_n)) / G3"),
     M("NumPy: RO branch swap", "lagamine_py/laws/ramberg_osgood.py",
       "            if in_q:", "            if not in_q:"),
+    M("NumPy: RO stop by the step alone (the quadratic bound dropped)",
+      "lagamine_py/laws/ramberg_osgood.py",
+      "done = ((newton & ((np.abs(step) <= tol) | (quad * step * step <= tol)))",
+      "done = ((newton & (np.abs(step) <= tol))"),
+    M("NumPy: RO ln P's start without the bound ln peeq(q_tr)",
+      "lagamine_py/laws/ramberg_osgood.py",
+      "y_hi = np.minimum(ln_p_star[i], self._a + n * np.log(qt))", "y_hi = ln_p_star[i]"),
     M("NumPy: axisymmetric hoop row dropped", "lagamine_py/elements/solid.py",
       "            B[:, :, 2, :, 0] = self.N / r[..., None]",
       "            B[:, :, 2, :, 0] = 0.0"),
@@ -475,7 +507,7 @@ class Mutated:
 def run_tests(env: dict, timeout: float) -> tuple[str, str]:
     """``("passed" | "failed" | "timeout" | "invalid", what failed)``."""
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-rf", "-p", "no:cacheprovider", TEST,
-           LANES_TEST]
+           LANES_TEST, LAW_TEST]
     try:
         out = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True,
                              timeout=timeout)
@@ -489,7 +521,8 @@ def run_tests(env: dict, timeout: float) -> tuple[str, str]:
     failed = [line for line in out.stdout.splitlines() if line.startswith(("FAILED", "ERROR"))]
     if not failed:
         return "failed", (out.stdout + out.stderr).strip().splitlines()[-1][:300]
-    line = re.sub(r"^(FAILED|ERROR) tests/test_(kernel_twins|solid_lanes).py::", "", failed[0])
+    line = re.sub(r"^(FAILED|ERROR) tests/test_(kernel_twins|solid_lanes|ro_return_map).py::", "",
+                  failed[0])
     return "failed", line[:300]
 
 

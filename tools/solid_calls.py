@@ -189,11 +189,13 @@ def collect_runs(whats, check: str | None, record, calls: int, reset_recorded: b
 
 
 def save_or_check(save: str | None, check: str | None, runs: dict, got: dict,
-                  describe=lambda differ: "") -> int:
+                  describe=lambda differ: "", rtol: float | None = None) -> int:
     """``save``: the answers ``got`` to ``save`` (npz) and the runs' calls (their groups reset as
     built) to ``save.calls.pickle``; ``check``: ``got`` against the answers saved in ``check`` for
     the runs asked, bit for bit (``describe(differ)`` adds to the verdict).  1 when any differs.
-    Shared with ``tools/kernel_calls.py``."""
+    ``rtol``: an array that differs agrees still when its non-finite entries are the same and
+    its finite ones within ``rtol`` of the array's largest magnitude (the largest such
+    difference is printed).  Shared with ``tools/kernel_calls.py``."""
     if save:
         np.savez(save, **got)
         for calls, _ in runs.values():
@@ -213,7 +215,34 @@ def save_or_check(save: str | None, check: str | None, runs: dict, got: dict,
     print(f"bit for bit against {check}: "
           + ("identical" if not differ else f"{len(differ)} arrays differ: {differ[:8]}"
              + describe(differ)))
-    return 1 if differ else 0
+    if rtol is None or not differ:
+        return 1 if differ else 0
+    worst, where, beyond = 0.0, "", []
+    for k in differ:
+        d = _relative_difference(ref.get(k), got.get(k))
+        if d > worst:
+            worst, where = d, k
+        if not d <= rtol:
+            beyond.append(k)
+    print(f"within rtol {rtol:g} of each array's largest entry: "
+          + ("all" if not beyond else f"{len(beyond)} arrays not: {beyond[:8]}")
+          + f"; largest relative difference {worst:.3g} ({where})")
+    return 1 if beyond else 0
+
+
+def _relative_difference(a, b) -> float:
+    """max |a - b| / max |a| over the finite entries; inf when shapes, kinds, the non-finite
+    entries or (strings) the values differ."""
+    if a is None or b is None or a.shape != b.shape or a.dtype.kind != b.dtype.kind:
+        return np.inf
+    if a.dtype.kind not in "fc":
+        return 0.0 if np.array_equal(a, b) else np.inf
+    fa, fb = np.isfinite(a), np.isfinite(b)
+    if not np.array_equal(fa, fb) or not np.array_equal(a[~fa], b[~fb], equal_nan=True):
+        return np.inf
+    scale = np.max(np.abs(a[fa]), initial=0.0)
+    diff = np.max(np.abs(a[fa] - b[fb]), initial=0.0)
+    return 0.0 if diff == 0.0 else (diff / scale if scale > 0.0 else np.inf)
 
 
 def main(argv=None) -> int:

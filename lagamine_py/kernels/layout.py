@@ -15,6 +15,17 @@ OK, BAD_DET_F, RETURN_MAP_FAILED = 0, 1, 2
 #: J2: relative margin above the current yield stress for a point to count as plastic (a point
 #: re-evaluated at its converged state, a zero increment, stays elastic despite round-off)
 YIELD_RTOL = 1e-12
+#: RAMBERG_OSGOOD's local Newton stops after a Newton step d with ``quad d^2 <= tol``: the
+#: error of the next iterate is below ``quad d^2``.  Newton from the right on a convex
+#: increasing g has error e_k <= 2 d_k (g' varies by at most a factor 2 on the bracket) and
+#: e_k+1 = g''/(2 g') e_k^2 with g''/g' <= 1 in y = ln P (g' = 1 + r, g'' = r + r^2/N, r < 1)
+#: and <= (1 + N)/2 in x = ln q (g' = N + s, g'' = s + s^2, s <= N): quad 2 and 1 + N.
+QUAD_Y = 2.0
+
+
+def quad_x(n: float) -> float:
+    """The x = ln q branch's factor ``quad`` (see ``QUAD_Y``) for the exponent ``n``."""
+    return 1.0 + n
 
 # -- contact kernel (kernels.contact) --------------------------------------------------------
 #: COULOMB: a point with ``f >= -ON_SURFACE_RTOL (radius + |tau|)`` starts on the yield surface

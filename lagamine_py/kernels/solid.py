@@ -37,7 +37,7 @@ import numpy as np
 from numba import njit
 
 from . import calls
-from .layout import (BAD_DET_F, ELASTIC, J2_LINEAR, OK, RETURN_MAP_FAILED, YIELD_RTOL,
+from .layout import (BAD_DET_F, ELASTIC, J2_LINEAR, OK, QUAD_Y, RETURN_MAP_FAILED, YIELD_RTOL,
                      SOLID_A as _A, SOLID_G as _G, SOLID_H as _H, SOLID_K as _K,
                      SOLID_MAXIT as _MAXIT, SOLID_N as _N, SOLID_SIGMAY as _SIGMAY,
                      SOLID_TOL as _TOL)
@@ -71,40 +71,57 @@ def _sym_eig2(a, b, c):
 # --------------------------------------------------------------------------------------------
 # Ramberg-Osgood return map (lagamine_py.laws.ramberg_osgood, point by point)
 
+_LN2 = math.log(2.0)
+
+
+@njit(inline="always", **_JIT)
+def _quad_x(n):
+    """``layout.quad_x``: the x = ln q branch's error factor."""
+    return 1.0 + n
+
+
 @njit(**_JIT)
 def _ro_residual(by_q, x, qt, pn, G3, a, n):
-    """``_g_q`` (by_q, x = ln q) or ``_g_p`` (x = ln P): residual and derivative."""
+    """``_g_q`` (by_q, x = ln q) or ``_g_p`` (x = ln P): the residual, the Newton step
+    g / g' and e^x (the step's exp, which the answer reuses)."""
     if by_q:
         q = math.exp(x)
         P = pn + (qt - q) / G3
         if P > 0.0:
-            return a + n * x - math.log(P), n + q / (G3 * P)
-        return math.inf, math.inf
+            g = a + n * x - math.log(P)
+            return g, g * (G3 * P) / (n * (G3 * P) + q), q     # g / (n + q / (3G P))
+        return math.inf, math.nan, q
     P = math.exp(x)
     q = qt - G3 * (P - pn)
     if q > 0.0:
-        return x - a - n * math.log(q), 1.0 + n * G3 * P / q
-    return math.inf, math.inf
+        g = x - a - n * math.log(q)
+        return g, g * q / (q + n * G3 * P), P          # g / (1 + n 3G P / q)
+    return math.inf, math.nan, P
 
 
 @njit(**_JIT)
-def _safeguarded_newton(by_q, lo, hi, tol, max_iter, qt, pn, G3, a, n):
-    """``safeguarded_newton`` for one point: Newton from ``hi``, bisection fallback."""
+def _safeguarded_newton(by_q, lo, hi, tol, quad, max_iter, qt, pn, G3, a, n):
+    """``safeguarded_newton`` for one point: Newton from ``hi``, bisection fallback; done
+    when a Newton step d has ``|d| <= tol`` or ``quad d^2 <= tol`` (a bound on the next
+    iterate's error: ``layout.QUAD_Y``).  Returns
+    ``(x, e^x, converged)``: after a Newton step d from x_k, e^x = e^x_k (1 - d + d^2/2)
+    (relative error d^3/6 < 1e-20 there), no exp of its own."""
     x = hi
     for _ in range(max_iter):
-        g, dg = _ro_residual(by_q, x, qt, pn, G3, a, n)
+        g, step, ex = _ro_residual(by_q, x, qt, pn, G3, a, n)
         if g > 0.0:
             hi = x
         if g <= 0.0:
             lo = x
-        x_newton = x - g / dg
+        x_newton = x - step
         newton = (x_newton >= lo) and (x_newton <= hi)
+        if newton and (abs(step) <= tol or quad * step * step <= tol or g == 0.0):
+            return x_newton, ex * (1.0 - step + 0.5 * step * step), True
         x_new = x_newton if newton else 0.5 * (lo + hi)
-        done = (newton and abs(x_new - x) <= tol) or (hi - lo <= tol) or (g == 0.0)
+        if (hi - lo <= tol) or (g == 0.0):
+            return x_new, math.exp(x_new), True
         x = x_new
-        if done:
-            return x, True
-    return x, False
+    return x, math.exp(x), False
 
 
 @njit(**_JIT)
@@ -115,21 +132,30 @@ def _ro_log_yield(peeq, a, n):
 @njit(**_JIT)
 def _ro_return_map(qt, pn, ln_pn, G3, a, n, tol, max_iter):
     """``RambergOsgood._return_map`` for one plastic point: (q, peeq, dq/dq_tr, ok);
-    ``ln_pn = ln peeq_n`` (computed once for the yield test and the bracket)."""
-    x_star = math.log(n * (qt + G3 * pn) / (n + 1.0))
-    lo = _nmax((ln_pn - a) / n,
-               _nmin(math.log(0.5 * qt), _ro_log_yield(pn + qt / (2.0 * G3), a, n)))
-    hi = _nmin(math.log(qt), _ro_log_yield(pn + qt / G3, a, n))
-    by_q = (x_star >= hi) or (_ro_residual(True, _nmin(x_star, hi), qt, pn, G3, a, n)[0] >= 0.0)
+    ``ln_pn = ln peeq_n`` (computed once for the yield test and the bracket).  The unknown
+    is chosen at q* = e^(x*) (rho = 1) with no exp: ln P where q* < q_tr, P(q*) > 0 and the
+    residual in ln q is negative there; ln P(q*) then bounds ln P from above (rho >= 1 on
+    all the bracket), as does ln peeq(q_tr) (the start of Newton: the lower of the two).
+    ``ln (peeq_n + q_tr/3G)``, the old third bound, is above ln P(q*): not computed."""
+    q_star = n * (qt + G3 * pn) / (n + 1.0)
+    p_star = pn + (qt - q_star) / G3
+    by_q = True
+    if q_star < qt and p_star > 0.0:
+        x_star, y_hi = math.log(q_star), math.log(p_star)
+        by_q = a + n * x_star - y_hi >= 0.0
     if by_q:
-        x, ok = _safeguarded_newton(True, lo, _nmin(hi, x_star), tol, max_iter, qt, pn, G3, a, n)
-        q = math.exp(x)
+        x_star, ln_qt = math.log(q_star), math.log(qt)
+        hi = _nmin(ln_qt, _ro_log_yield(pn + qt / G3, a, n))
+        lo = _nmax((ln_pn - a) / n,
+                   _nmin(ln_qt - _LN2, _ro_log_yield(pn + qt / (2.0 * G3), a, n)))
+        x, q, ok = _safeguarded_newton(True, lo, _nmin(hi, x_star), tol, _quad_x(n), max_iter,
+                                       qt, pn, G3, a, n)
         peeq = pn + (qt - q) / G3
     else:
         y_lo = _nmax(ln_pn, a + n * x_star)
-        y_hi = _nmin(math.log(pn + (qt - math.exp(x_star)) / G3), a + n * hi)
-        y, ok = _safeguarded_newton(False, y_lo, y_hi, tol, max_iter, qt, pn, G3, a, n)
-        peeq = math.exp(y)
+        y_hi = _nmin(y_hi, a + n * math.log(qt))        # P <= peeq(q_tr) too
+        y, peeq, ok = _safeguarded_newton(False, y_lo, y_hi, tol, QUAD_Y, max_iter, qt, pn, G3,
+                                          a, n)
         q = qt - G3 * (peeq - pn)
     return q, peeq, q / (q + G3 * n * peeq), ok
 

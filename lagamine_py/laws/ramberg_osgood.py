@@ -24,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.params import Param
-from ..kernels.layout import (RAMBERG_OSGOOD, SOLID_A, SOLID_G, SOLID_K, SOLID_MAXIT, SOLID_N,
-                              SOLID_TOL, SOLID_VECTOR)
+from ..kernels.layout import (QUAD_Y, RAMBERG_OSGOOD, SOLID_A, SOLID_G, SOLID_K, SOLID_MAXIT,
+                              SOLID_N, SOLID_TOL, SOLID_VECTOR, quad_x)
 from .j2 import J2Plasticity
 
 __all__ = ["RambergOsgood", "safeguarded_newton"]
@@ -80,11 +80,16 @@ class RambergOsgood(J2Plasticity):
         factor 2 on its interval, so both are well conditioned.
         """
         G3, n = 3.0 * self.G, self.values["N"]
-        x_star = np.log(n * (q_tr + G3 * peeq_n) / (n + 1.0))
+        q_star = n * (q_tr + G3 * peeq_n) / (n + 1.0)
+        x_star = np.log(q_star)
         with np.errstate(divide="ignore"):
             ln_pn = np.log(peeq_n)
         lo, hi = self._bracket(q_tr, peeq_n)
-        by_q = (x_star >= hi) | (self._g_q(np.minimum(x_star, hi), q_tr, peeq_n)[0] >= 0.0)
+        # the unknown is chosen at q*: ln P where q* < q_tr, P(q*) > 0 and g_q(x*) < 0 there
+        p_star = peeq_n + (q_tr - q_star) / G3
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ln_p_star = np.log(p_star)
+        by_q = ~((q_star < q_tr) & (p_star > 0.0) & (self._a + n * x_star - ln_p_star < 0.0))
 
         q, peeq, ok = np.empty_like(q_tr), np.empty_like(q_tr), np.empty(q_tr.shape, dtype=bool)
         for in_q, mask in ((True, by_q), (False, ~by_q)):
@@ -94,14 +99,17 @@ class RambergOsgood(J2Plasticity):
             qt, pn, xs = q_tr[i], peeq_n[i], x_star[i]
             if in_q:
                 x, ok[i] = safeguarded_newton(lambda x, k: self._g_q(x, qt[k], pn[k]),
-                                              lo[i], np.minimum(hi[i], xs), self.tol, self.max_iter)
+                                              lo[i], np.minimum(hi[i], xs), self.tol,
+                                              self.max_iter, quad=quad_x(n))
                 q[i] = np.exp(x)
                 peeq[i] = pn + (qt - q[i]) / G3
             else:
+                # ln P(q*) bounds ln P from above (rho >= 1, r <= 1, on all the bracket), as
+                # does ln peeq(q_tr); ln(peeq_n + q_tr/3G) (a + n hi's other term) exceeds both
                 y_lo = np.maximum(ln_pn[i], self._a + n * xs)
-                y_hi = np.minimum(np.log(pn + (qt - np.exp(xs)) / G3), self._a + n * hi[i])
+                y_hi = np.minimum(ln_p_star[i], self._a + n * np.log(qt))
                 y, ok[i] = safeguarded_newton(lambda y, k: self._g_p(y, qt[k], pn[k]),
-                                              y_lo, y_hi, self.tol, self.max_iter)
+                                              y_lo, y_hi, self.tol, self.max_iter, quad=QUAD_Y)
                 peeq[i] = np.exp(y)
                 q[i] = qt - G3 * (peeq[i] - pn)
         # dq/dq_tr = 1 / (1 + 3G peeq'(q)) with peeq'(q) = N peeq(q) / q
@@ -114,10 +122,10 @@ class RambergOsgood(J2Plasticity):
         ``sigma_y(peeq_n) <= q <= min(q_tr, sigma_y(peeq_n + q_tr/3G))``; and either
         ``q >= q_tr/2`` or ``dp > q_tr/6G``, hence ``q >= min(q_tr/2, sigma_y(peeq_n + q_tr/6G))``.
         """
-        G3 = 3.0 * self.G
+        G3, ln_qt = 3.0 * self.G, np.log(q_tr)
         lo = np.maximum(self._log_yield(peeq_n),
-                        np.minimum(np.log(0.5 * q_tr), self._log_yield(peeq_n + q_tr / (2.0 * G3))))
-        hi = np.minimum(np.log(q_tr), self._log_yield(peeq_n + q_tr / G3))
+                        np.minimum(ln_qt - np.log(2.0), self._log_yield(peeq_n + q_tr / (2.0 * G3))))
+        hi = np.minimum(ln_qt, self._log_yield(peeq_n + q_tr / G3))
         return lo, hi
 
     def _g_q(self, x, q_tr, peeq_n):
@@ -156,15 +164,16 @@ class RambergOsgood(J2Plasticity):
         return RAMBERG_OSGOOD, p, np.ascontiguousarray(self.D_elastic, dtype=float)
 
 
-def safeguarded_newton(fun, lo, hi, tol, max_iter):
+def safeguarded_newton(fun, lo, hi, tol, max_iter, quad=np.inf):
     """Roots of increasing scalar functions, batched: Newton from ``hi``, bisection fallback.
 
     ``fun(x, k) -> (g, dg)`` evaluates the residuals of the points ``k`` (``slice(None)``, every
     point, at the first iteration; then an index array into the batch) at ``x``; ``lo``/``hi``
     (m,) bracket the roots (``g(lo) <= 0 <= g(hi)``).
     A Newton step that leaves the current bracket is replaced by bisection, so the iteration
-    cannot diverge.  Returns ``(x, converged)``: converged where a Newton step fell below
-    ``tol`` (the quadratic step leaves x far closer still) or the bracket is narrower.
+    cannot diverge.  Returns ``(x, converged)``: converged after a Newton step d with
+    ``|d| <= tol`` or ``quad d^2 <= tol`` (``quad``: a bound on the next iterate's error over
+    d^2, ``kernels.layout.QUAD_Y``; inf: the step alone), or where the bracket is narrower.
     """
     lo, hi = lo.astype(float), hi.astype(float)
     x = hi.copy()
@@ -178,7 +187,9 @@ def safeguarded_newton(fun, lo, hi, tol, max_iter):
             x_newton = xa - g / dg
             newton = (x_newton >= la) & (x_newton <= ha)
             x_new = np.where(newton, x_newton, 0.5 * (la + ha))
-            done = (newton & (np.abs(x_new - xa) <= tol)) | (ha - la <= tol) | (g == 0.0)
+            step = x_new - xa
+            done = ((newton & ((np.abs(step) <= tol) | (quad * step * step <= tol)))
+                    | (ha - la <= tol) | (g == 0.0))
             x[active], lo[active], hi[active] = x_new, la, ha
             active = np.flatnonzero(~done) if isinstance(active, slice) else active[~done]
             if active.size == 0:
