@@ -3,8 +3,9 @@
 Each mutation below breaks one branch of a numba kernel (``lagamine_py/kernels/solid.py``,
 ``lagamine_py/kernels/contact.py``) -- or, to show that the comparison is two-sided, of a NumPy
 reference -- by replacing one exact piece of source text.  The tool applies them one at a time,
-runs ``pytest -x -q tests/test_kernel_twins.py tests/test_solid_lanes.py`` (the second: the
-solid kernel's blocks of several ``LANES`` elements and a remainder; numba recompiles the
+runs ``pytest -x -q tests/test_kernel_twins.py tests/test_solid_lanes.py
+tests/test_solid_threads.py`` (the second: the solid kernel's blocks of several ``LANES``
+elements and a remainder; the third: its element ranges on threads; numba recompiles the
 mutated module: its cache is keyed on the source file's time stamp), always restores the file
 (also on an error or Ctrl-C), and prints a table: the mutation and the test that caught it, or
 SURVIVED.
@@ -43,6 +44,8 @@ ROOT = Path(__file__).resolve().parents[1]
 TEST = "tests/test_kernel_twins.py"
 #: the solid kernel's blocks of several LANES elements and a remainder, run after TEST
 LANES_TEST = "tests/test_solid_lanes.py"
+#: the solid kernel on element ranges, one thread each, against one thread byte for byte
+THREADS_TEST = "tests/test_solid_threads.py"
 SOLID = "lagamine_py/kernels/solid.py"
 CONTACT = "lagamine_py/kernels/contact.py"
 
@@ -185,6 +188,19 @@ MUTATIONS = [
       "return m, m, 1.0, 0.0", "return m, m, 0.0, 1.0",
       equivalent="at a double eigenvalue P0 + P1 = I and P0xP0 + P1xP1 + SxS/2 is the "
                  "symmetric identity whatever the axes: same b_e_n, E and tangent"),
+    # -- kernels/solid.py: element ranges on threads (caught by THREADS_TEST) ----------------
+    M("solid split: no deferral (a later range sums shared entries straight in)", SOLID,
+      "deferring = brow.shape[0] > 0", "deferring = False"),
+    M("solid split: a deferred tangent contribution dropped", SOLID,
+      "kbuf[-t - 1] = Ke[k]", "kbuf[-t - 1] = 0.0"),
+    M("solid split: a deferred force summed straight in", SOLID,
+      "fbuf[-t - 1] = fl[d * _L + l]", "f_out[dofs[e, d]] += fl[d * _L + l]"),
+    M("solid split: the earlier ranges' tangent entries not marked shared", SOLID,
+      "seen_k[p] = True", "seen_k[p] = False"),
+    M("solid split: the deferred waves added last first", SOLID,
+      "for slots, element, target in waves:", "for slots, element, target in waves[::-1]:"),
+    M("solid split: a BAD_DET_F element's stale slots added", SOLID,
+      "ok = flags[element] != BAD_DET_F", "ok = flags[element] >= OK"),
     # -- kernels/contact.py: the Coulomb point ------------------------------------------------
     M("contact: Coulomb return's hardening term dropped", CONTACT,
       "step = resid / (kt + h)", "step = resid / kt"),
@@ -475,7 +491,7 @@ class Mutated:
 def run_tests(env: dict, timeout: float) -> tuple[str, str]:
     """``("passed" | "failed" | "timeout" | "invalid", what failed)``."""
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-rf", "-p", "no:cacheprovider", TEST,
-           LANES_TEST]
+           LANES_TEST, THREADS_TEST]
     try:
         out = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True,
                              timeout=timeout)
@@ -489,7 +505,7 @@ def run_tests(env: dict, timeout: float) -> tuple[str, str]:
     failed = [line for line in out.stdout.splitlines() if line.startswith(("FAILED", "ERROR"))]
     if not failed:
         return "failed", (out.stdout + out.stderr).strip().splitlines()[-1][:300]
-    line = re.sub(r"^(FAILED|ERROR) tests/test_(kernel_twins|solid_lanes).py::", "", failed[0])
+    line = re.sub(r"^(FAILED|ERROR) tests/test_(kernel_twins|solid_lanes|solid_threads).py::", "", failed[0])
     return "failed", line[:300]
 
 
