@@ -14,7 +14,9 @@ CSR data and force vectors:
 * ``--save F``: every answer (the scattered data and force, the element forces, the trial
   state, the failure) to ``F`` (npz) and the calls to ``F.calls.pickle``; ``--check F``: the
   saved calls replayed and their answers compared bit for bit with ``F`` (exit 1 on any
-  difference).  Save with one tree and check with another (``PYTHONPATH=<tree> python
+  difference).  ``--split-elements N`` replays with the kernel's element ranges on threads from
+  ``2 N`` elements (``kernels.solid.Split``): ``--check`` then compares them with the saved
+  one-thread answers.  Save with one tree and check with another (``PYTHONPATH=<tree> python
   tools/kernel_calls.py ...``): a change that keeps every byte keeps every run's path.
 
 ``--plastic NXxNY [--element Q8PE] [--law RAMBERG_OSGOOD]``: instead, the ``tools/bench.py
@@ -147,7 +149,14 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--save")
     ap.add_argument("--check")
+    ap.add_argument("--split-elements", type=int, metavar="N",
+                    help="elements per thread at least for the kernel's element ranges "
+                         "(SolidElement.split_elements: a group of 2N elements or more is split "
+                         "when the kernel has two threads); the count of split calls is printed")
     a = ap.parse_args(argv)
+    if a.split_elements:
+        from lagamine_py.elements.solid import SolidElement
+        SolidElement.split_elements = a.split_elements
     if a.plastic:
         print(plastic_block(a.plastic, a.element, a.repeat, a.law))
         return 0
@@ -158,6 +167,9 @@ def main(argv=None) -> int:
               f"evaluations replayed")
         got.update(answers(calls, f"{what}/"))
     code = save_or_check(a.save, a.check, runs, got)
+    if a.split_elements:
+        from lagamine_py import kernels
+        print(f"split calls (element ranges on threads): {kernels.calls['solid_split']}")
     for what, (calls, _) in runs.items():
         elements = np.mean([len(c[0].conn) for c in calls])
         print(what)
