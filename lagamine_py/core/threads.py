@@ -29,8 +29,10 @@ import os
 import sys
 from concurrent.futures import ThreadPoolExecutor
 
-#: the solid kernel's threads when neither LAGAMINE_THREADS nor OMP_NUM_THREADS says
-DEFAULT_KERNEL_THREADS = 2
+#: the solid kernel's threads when neither LAGAMINE_THREADS nor OMP_NUM_THREADS says: one, as
+#: CalculiX without OMP_NUM_THREADS (two measured no faster on the loaded 2-core machine of
+#: docs/performance.md, "The solid kernel on two threads")
+DEFAULT_KERNEL_THREADS = 1
 #: elements per thread at least: below, the thread start and join and the deferred sums cost
 #: what the split saves (docs/performance.md, "The solid kernel on two threads")
 SPLIT_ELEMENTS = 2048

@@ -725,12 +725,13 @@ def _scatter_deferred(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, 
             _scatter_element(l, e, nen, tangent, fl, Ke, fe, f_out, data, pos, dofs)
             continue
         for d in range(nd):
-            fe[e, d] = fl[d * _L + l]
+            x = fl[d * _L + l]
+            fe[e, d] = x
             t = bdof[r, d]
             if t >= 0:
-                f_out[t] += fl[d * _L + l]
+                f_out[t] += x
             else:
-                fbuf[-t - 1] = fl[d * _L + l]
+                fbuf[-t - 1] = x
         if tangent:
             for d in range(nd):
                 a, i = d // 2, d % 2
