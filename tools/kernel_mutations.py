@@ -152,7 +152,8 @@ MUTATIONS = [
     M("solid: eigenvector angle's sign", SOLID,
       "return m + rho, m - rho, h / rho, c / rho", "return m + rho, m - rho, h / rho, -c / rho"),
     M("control: tangent scattered transposed", SOLID,
-      "data[pos[e, d, d2]] += Ke[k]", "data[pos[e, d2, d]] += Ke[k]",
+      "return ((d2 // 2 * nen + d // 2) * 4 + 2 * (d % 2) + d2 % 2) * _L + l",
+      "return ((d // 2 * nen + d2 // 2) * 4 + 2 * (d2 % 2) + d % 2) * _L + l",
       equivalent="every element tangent of these laws is symmetric (Hencky hyperelasticity, "
                  "J2's associative radial return: the derivative of a potential's gradient)"),
     M("solid: global force overwritten, not added", SOLID,

@@ -701,10 +701,16 @@ def _scatter_element(l, e, nen, tangent, fl, Ke, fe, f_out, data, pos, dofs):
         f_out[dofs[e, d]] += fl[d * _L + l]
     if tangent:
         for d in range(nd):
-            a, i = d // 2, d % 2
             for d2 in range(nd):
-                k = ((d2 // 2 * nen + a) * 4 + 2 * i + d2 % 2) * _L + l
-                data[pos[e, d, d2]] += Ke[k]
+                data[pos[e, d, d2]] += Ke[_ke_at(d, d2, nen, l)]
+
+
+@njit(inline="always", **_JIT)
+def _ke_at(d, d2, nen, l):
+    """Where lane ``l``'s element tangent entry [d, d2] is in ``Ke`` (node pair (d2 // 2,
+    d // 2), component 2 (d % 2) + d2 % 2: see :func:`scratch_arrays`); both scatters read
+    through it."""
+    return ((d2 // 2 * nen + d // 2) * 4 + 2 * (d % 2) + d2 % 2) * _L + l
 
 
 @njit(inline="always", **_JIT)
@@ -734,14 +740,12 @@ def _scatter_deferred(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, 
                 fbuf[-t - 1] = x
         if tangent:
             for d in range(nd):
-                a, i = d // 2, d % 2
                 for d2 in range(nd):
-                    k = ((d2 // 2 * nen + a) * 4 + 2 * i + d2 % 2) * _L + l
                     t = bpos[r, d, d2]
                     if t >= 0:
-                        data[t] += Ke[k]
+                        data[t] += Ke[_ke_at(d, d2, nen, l)]
                     else:
-                        kbuf[-t - 1] = Ke[k]
+                        kbuf[-t - 1] = Ke[_ke_at(d, d2, nen, l)]
 
 
 @njit(**_JIT)
