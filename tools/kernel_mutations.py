@@ -191,7 +191,7 @@ MUTATIONS = [
     M("solid split: no deferral (a later range sums shared entries straight in)", SOLID,
       "deferring = brow.shape[0] > 0", "deferring = False"),
     M("solid split: a deferred tangent contribution dropped", SOLID,
-      "kbuf[-t - 1] = Ke[k]", "kbuf[-t - 1] = 0.0"),
+      "kbuf[-t - 1] = Ke[_ke_at(d, d2, nen, l)]", "kbuf[-t - 1] = 0.0"),
     M("solid split: a deferred force summed straight in", SOLID,
       "fbuf[-t - 1] = x", "f_out[dofs[e, d]] += x"),
     M("solid split: the earlier ranges' tangent entries not marked shared", SOLID,
