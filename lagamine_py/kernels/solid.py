@@ -894,7 +894,7 @@ class _Deferred:
 
     def add(self, tangent, flags, f_out, data) -> None:
         """The deferred contributions into ``f_out`` (and ``data``), wave by wave; a BAD_DET_F
-        element's slots (never written) left out."""
+        element's slots (not written by this call: they hold an earlier call's) left out."""
         parts = [(self.f_waves, self.defer[3], f_out)]
         if tangent:
             parts.append((self.k_waves, self.defer[4], data))
