@@ -349,6 +349,7 @@ def run_one(nx: int, ny: int, solver: str = "AUTO", keep: str | None = None,
         "t_deck": t_deck, "t_build": t_build, "t_run": t_run, "times": t,
         "cpu_run": cpu_run, "cpu_times": cpu, "load_average": os.getloadavg(),
         "cpus": os.cpu_count(),
+        "solid_split_calls": int(kernels.calls["solid_split"]),
         "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         "python": sys.version.split()[0], "numpy": np.__version__,
     }
@@ -974,6 +975,9 @@ def main(argv=None) -> int:
                    "for this run (kernels.AUTO_NUMBA_ELEMENTS)")
     p.add_argument("--controls", nargs="+", default=[], metavar="KEY=VALUE",
                    help="*CONTROLS values for every step (e.g. KRYLOV=0)")
+    p.add_argument("--split-elements", type=int, metavar="N", help="the numba solid kernel's "
+                   "element ranges on threads from 2N elements (SolidElement.split_elements; "
+                   "the threads: LAGAMINE_THREADS)")
     p = sub.add_parser("assembly")
     p.add_argument("--nx", type=int, default=160)
     p.add_argument("--ny", type=int, default=80)
@@ -1008,6 +1012,9 @@ def main(argv=None) -> int:
 
     if args.cmd == "one":
         controls = dict(kv.split("=", 1) for kv in args.controls)
+        if args.split_elements:
+            from lagamine_py.elements.solid import SolidElement
+            SolidElement.split_elements = args.split_elements
         res = run_one(args.nx, args.ny, args.solver, args.keep, args.max_increments, args.kernel,
                       args.numba_from, controls)
         text = json.dumps(res, indent=1)

@@ -4,10 +4,10 @@ Each mutation below breaks one branch of a numba kernel (``lagamine_py/kernels/s
 ``lagamine_py/kernels/contact.py``) -- or, to show that the comparison is two-sided, of a NumPy
 reference -- by replacing one exact piece of source text.  The tool applies them one at a time,
 runs ``pytest -x -q tests/test_kernel_twins.py tests/test_solid_lanes.py
-tests/test_ro_return_map.py`` (the second: the solid kernel's blocks of several ``LANES``
-elements and a remainder; the third: the Ramberg-Osgood return map against closed forms, where a
-mutant that changes the iterations but not the answers beyond the twins' tolerance is caught;
-numba recompiles the
+tests/test_ro_return_map.py tests/test_solid_threads.py`` (the second: the solid kernel's
+blocks of several ``LANES`` elements and a remainder; the third: the Ramberg-Osgood return map
+against closed forms, where a mutant that changes the iterations but not the answers beyond the
+twins' tolerance is caught; the fourth: its element ranges on threads; numba recompiles the
 mutated module: its cache is keyed on the source file's time stamp), always restores the file
 (also on an error or Ctrl-C), and prints a table: the mutation and the test that caught it, or
 SURVIVED.
@@ -48,6 +48,8 @@ TEST = "tests/test_kernel_twins.py"
 LAW_TEST = "tests/test_ro_return_map.py"
 #: the solid kernel's blocks of several LANES elements and a remainder, run after TEST
 LANES_TEST = "tests/test_solid_lanes.py"
+#: the solid kernel on element ranges, one thread each, against one thread byte for byte
+THREADS_TEST = "tests/test_solid_threads.py"
 SOLID = "lagamine_py/kernels/solid.py"
 CONTACT = "lagamine_py/kernels/contact.py"
 
@@ -174,7 +176,8 @@ MUTATIONS = [
     M("solid: eigenvector angle's sign", SOLID,
       "return m + rho, m - rho, h / rho, c / rho", "return m + rho, m - rho, h / rho, -c / rho"),
     M("control: tangent scattered transposed", SOLID,
-      "data[pos[e, d, d2]] += Ke[k]", "data[pos[e, d2, d]] += Ke[k]",
+      "return ((d2 // 2 * nen + d // 2) * 4 + 2 * (d % 2) + d2 % 2) * _L + l",
+      "return ((d // 2 * nen + d2 // 2) * 4 + 2 * (d2 % 2) + d % 2) * _L + l",
       equivalent="every element tangent of these laws is symmetric (Hencky hyperelasticity, "
                  "J2's associative radial return: the derivative of a potential's gradient)"),
     M("solid: global force overwritten, not added", SOLID,
@@ -184,15 +187,13 @@ MUTATIONS = [
     M("lanes: every block reads the first block's elements", SOLID,
       "el[l] = e0 + min(l, n - 1)", "el[l] = min(l, n - 1)"),
     M("lanes: the spare lanes of the remainder block scattered", SOLID,
-      "    for l in range(n):\n        e = el[l]\n        if flags[e] == BAD_DET_F:\n"
-      "            continue\n        for d in range(nd):",
-      "    for l in range(_L):\n        e = el[l]\n        if flags[e] == BAD_DET_F:\n"
-      "            continue\n        for d in range(nd):"),
+      "    for l in range(n):\n        if flags[el[l]] != BAD_DET_F:\n            _scatter_element(",
+      "    for l in range(_L):\n        if flags[el[l]] != BAD_DET_F:\n            _scatter_element("),
     M("lanes: the law run in a BAD_DET_F lane", SOLID,
       "        if flags[e] == BAD_DET_F:\n            continue\n        # 1/2 ln b",
       "        # 1/2 ln b"),
     M("lanes: a lane's element force from the next lane", SOLID,
-      "fe[e, d] = fl[d * _L + l]", "fe[e, d] = fl[d * _L + min(l + 1, n - 1)]"),
+      "fe[e, d] = fl[d * _L + l]", "fe[e, d] = fl[d * _L + min(l + 1, _L - 1)]"),
     M("start: F_old^-1 off-diagonal sign", SOLID,
       "old[e, q, 0], old[e, q, 1] = F[q, 1, 1] * s, -F[q, 0, 1] * s",
       "old[e, q, 0], old[e, q, 1] = F[q, 1, 1] * s, F[q, 0, 1] * s"),
@@ -210,6 +211,19 @@ MUTATIONS = [
       "return m, m, 1.0, 0.0", "return m, m, 0.0, 1.0",
       equivalent="at a double eigenvalue P0 + P1 = I and P0xP0 + P1xP1 + SxS/2 is the "
                  "symmetric identity whatever the axes: same b_e_n, E and tangent"),
+    # -- kernels/solid.py: element ranges on threads (caught by THREADS_TEST) ----------------
+    M("solid split: no deferral (a later range sums shared entries straight in)", SOLID,
+      "deferring = brow.shape[0] > 0", "deferring = False"),
+    M("solid split: a deferred tangent contribution dropped", SOLID,
+      "kbuf[-t - 1] = Ke[_ke_at(d, d2, nen, l)]", "kbuf[-t - 1] = 0.0"),
+    M("solid split: a deferred force summed straight in", SOLID,
+      "fbuf[-t - 1] = x", "f_out[dofs[e, d]] += x"),
+    M("solid split: the earlier ranges' tangent entries not marked shared", SOLID,
+      "seen_k[p] = True", "seen_k[p] = False"),
+    M("solid split: the deferred waves added last first", SOLID,
+      "for slots, element, target in waves:", "for slots, element, target in waves[::-1]:"),
+    M("solid split: a BAD_DET_F element's stale slots added", SOLID,
+      "ok = flags[element] != BAD_DET_F", "ok = flags[element] >= OK"),
     # -- kernels/contact.py: the Coulomb point ------------------------------------------------
     M("contact: Coulomb return's hardening term dropped", CONTACT,
       "step = resid / (kt + h)", "step = resid / kt"),
@@ -507,7 +521,7 @@ class Mutated:
 def run_tests(env: dict, timeout: float) -> tuple[str, str]:
     """``("passed" | "failed" | "timeout" | "invalid", what failed)``."""
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-rf", "-p", "no:cacheprovider", TEST,
-           LANES_TEST, LAW_TEST]
+           LANES_TEST, LAW_TEST, THREADS_TEST]
     try:
         out = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True,
                              timeout=timeout)
@@ -521,8 +535,8 @@ def run_tests(env: dict, timeout: float) -> tuple[str, str]:
     failed = [line for line in out.stdout.splitlines() if line.startswith(("FAILED", "ERROR"))]
     if not failed:
         return "failed", (out.stdout + out.stderr).strip().splitlines()[-1][:300]
-    line = re.sub(r"^(FAILED|ERROR) tests/test_(kernel_twins|solid_lanes|ro_return_map).py::", "",
-                  failed[0])
+    line = re.sub(r"^(FAILED|ERROR) tests/test_(kernel_twins|solid_lanes|ro_return_map|"
+                  r"solid_threads).py::", "", failed[0])
     return "failed", line[:300]
 
 

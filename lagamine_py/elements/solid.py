@@ -25,6 +25,7 @@ import copy
 import numpy as np
 
 from .. import kernels
+from ..core import threads
 from ..core.tensors import det2 as _det2, inv2 as _inv2
 from .base import LATER, Element, GroupResult, StepContext
 
@@ -631,12 +632,34 @@ class SolidElement(Element):
         nk.solid_group(bool(ctx.nlgeom), bool(tangent), bool(self.axisymmetric), kind, lp, Del,
                        conn, u_new, u_old, N, dNdX, R0, w0, eps_e_n, peeq_n, old, bad_old,
                        new_state["eps_e"], new_state["peeq"], new_state["stress"], fe, flags,
-                       data, f_out, pos, dofs, nk.scratch_arrays(self.nen, nq))
+                       data, f_out, pos, dofs, nk.scratch_arrays(self.nen, nq),
+                       split=self._kernel_split(positions, dofs))
         for code, what in ((nk.BAD_DET_F, "non-positive det F"),
                            (nk.RETURN_MAP_FAILED, "return mapping failed")):
             if (flags == code).any():
                 return self._failure(flags == code, what, state, False)
         return GroupResult(fe, None, new_state)
+
+    #: elements per thread at least for the kernel's element ranges (tests lower it)
+    split_elements = threads.SPLIT_ELEMENTS
+
+    def _kernel_split(self, positions: np.ndarray, dofs: np.ndarray):
+        """The kernel's element ranges on threads (``kernels.solid.Split``, the same bytes as
+        one thread), or None for one thread: :func:`~lagamine_py.core.threads.split_parts`.
+        Kept per pattern: ``positions`` recognised by identity (the pattern's own array, held
+        by the key)."""
+        parts = threads.split_parts(len(dofs), per_thread=self.split_elements)
+        if parts < 2:
+            return None
+        key = self._cache.get("kernel_split_key")
+        if key is None or key[0] is not positions or key[1] != parts:
+            self._cache.pop("kernel_split", None)
+            split = kernels.module("solid").Split(
+                dofs, positions.reshape(len(dofs), dofs.shape[1], -1), parts,
+                threads.worker_pool())
+            self._cache["kernel_split_key"] = (positions, parts)
+            self._cache["kernel_split"] = split
+        return self._cache["kernel_split"]
 
     def _kernel_geometry(self):
         """``conn``, ``N``, ``dNdX``, ``R0``, ``w0``, ``dofs`` as contiguous arrays (cached)."""

@@ -43,7 +43,7 @@ from .layout import (BAD_DET_F, ELASTIC, J2_LINEAR, OK, QUAD_Y, RETURN_MAP_FAILE
                      SOLID_TOL as _TOL)
 from .scalars import nmax as _nmax, nmin as _nmin
 
-__all__ = ["scratch_arrays", "solid_group", "start_group"]
+__all__ = ["NO_DEFER", "Split", "scratch_arrays", "solid_group", "start_group"]
 
 # _nrt=False: no reference counting.  The kernels allocate nothing (the caller passes the work
 # arrays), and without it every array handed to an inlined helper costs atomic increments and
@@ -294,7 +294,7 @@ def scratch_arrays(nen: int, nq: int) -> tuple:
 @njit(**_JIT)
 def _solid_kernel(nlgeom, tangent, axisym, kind, lp, Del, conn, u_new, u_old, Nq, dNdX, R0, w0,
                  eps_e_n, peeq_n, old, bad_old, eps_e_out, peeq_out, stress_out, fe, flags,
-                 data, f_out, pos, dofs, scratch):
+                 data, f_out, pos, dofs, scratch, defer):
     """Compute every element of a group and scatter it.
 
     Inputs: ``conn`` (e, a); ``u_new``/``u_old`` (n, 2); ``Nq`` (q, a); ``dNdX`` (e, q, a, 2);
@@ -304,7 +304,10 @@ def _solid_kernel(nlgeom, tangent, axisym, kind, lp, Del, conn, u_new, u_old, Nq
     Outputs: the trial state ``eps_e_out``, ``peeq_out``, ``stress_out`` (Cauchy), the element
     forces ``fe`` (e, d), added into ``f_out`` (ndof,); the tangent added into ``data`` (nnz,)
     when ``tangent``; ``flags`` (e,) OK / BAD_DET_F (element skipped) / RETURN_MAP_FAILED.
-    ``scratch``: the work arrays of :func:`scratch_arrays`.
+    ``scratch``: the work arrays of :func:`scratch_arrays`.  ``defer``: :data:`NO_DEFER` (every
+    contribution into ``data`` and ``f_out``) or, for an element range on a thread of its own,
+    the range's :class:`Split` tables (its contributions to entries an earlier range also
+    touches go, in order, to buffers that :meth:`Split.run` adds afterwards).
 
     Blocks of ``LANES`` elements; the last block's spare lanes repeat its last element, and
     are computed (the vector loops) but never read, nor is any lane of a BAD_DET_F element.
@@ -313,6 +316,8 @@ def _solid_kernel(nlgeom, tangent, axisym, kind, lp, Del, conn, u_new, u_old, Nq
     nq = Nq.shape[0]
     nd = 2 * nen
     _, _, _, _, el, v, U, X, Fq, G, Ml, fl, Ke, eps, stress, D, eps_e = scratch
+    brow, bdof, bpos, fbuf, kbuf = defer
+    deferring = brow.shape[0] > 0
     for e0 in range(0, ne, _L):
         n = min(_L, ne - e0)
         for l in range(_L):
@@ -348,7 +353,11 @@ def _solid_kernel(nlgeom, tangent, axisym, kind, lp, Del, conn, u_new, u_old, Nq
                 _small_strain_block(n, el, q, nen, U, X, Fq, R0, Nq, axisym, kind, lp, Del,
                                     eps_e_n, peeq_n, eps_e_out, peeq_out, stress_out, tangent,
                                     flags, v, G, Ml, fl, Ke, eps, stress, D, eps_e)
-        _scatter(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, dofs)
+        if deferring:           # a range after the first, on its own thread
+            _scatter_deferred(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, dofs,
+                              brow, bdof, bpos, fbuf, kbuf)
+        else:
+            _scatter(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, dofs)
 
 
 @njit(inline="always", **_JIT)
@@ -704,20 +713,65 @@ def _scatter(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, dofs):
     """The block's element forces to ``fe`` and ``f_out`` and tangents to ``data``, element by
     element in order (each entry's sum in the element-by-element order); a BAD_DET_F element
     and the spare lanes add nothing."""
+    for l in range(n):
+        if flags[el[l]] != BAD_DET_F:
+            _scatter_element(l, el[l], nen, tangent, fl, Ke, fe, f_out, data, pos, dofs)
+
+
+@njit(inline="always", **_JIT)
+def _scatter_element(l, e, nen, tangent, fl, Ke, fe, f_out, data, pos, dofs):
+    """Lane ``l``'s element ``e`` to ``fe``, ``f_out`` and ``data``."""
+    nd = 2 * nen
+    for d in range(nd):
+        fe[e, d] = fl[d * _L + l]
+        f_out[dofs[e, d]] += fl[d * _L + l]
+    if tangent:
+        for d in range(nd):
+            for d2 in range(nd):
+                data[pos[e, d, d2]] += Ke[_ke_at(d, d2, nen, l)]
+
+
+@njit(inline="always", **_JIT)
+def _ke_at(d, d2, nen, l):
+    """Where lane ``l``'s element tangent entry [d, d2] is in ``Ke`` (node pair (d2 // 2,
+    d // 2), component 2 (d % 2) + d2 % 2: see :func:`scratch_arrays`); both scatters read
+    through it."""
+    return ((d2 // 2 * nen + d // 2) * 4 + 2 * (d % 2) + d2 % 2) * _L + l
+
+
+@njit(inline="always", **_JIT)
+def _scatter_deferred(n, el, nen, tangent, flags, fl, Ke, fe, f_out, data, pos, dofs,
+                      brow, bdof, bpos, fbuf, kbuf):
+    """:func:`_scatter` of a range on a thread of its own: an element of the range's boundary
+    (``brow[e] >= 0``) sends each contribution to an entry that an earlier range also touches
+    to its slot ``-t - 1`` of ``fbuf`` / ``kbuf`` (``t`` the entry's code in ``bdof`` /
+    ``bpos``), every other contribution straight into ``f_out`` / ``data`` (an entry no other
+    thread writes)."""
     nd = 2 * nen
     for l in range(n):
         e = el[l]
         if flags[e] == BAD_DET_F:
             continue
+        r = brow[e]
+        if r < 0:                                   # inside the range: as _scatter
+            _scatter_element(l, e, nen, tangent, fl, Ke, fe, f_out, data, pos, dofs)
+            continue
         for d in range(nd):
-            fe[e, d] = fl[d * _L + l]
-            f_out[dofs[e, d]] += fl[d * _L + l]
+            x = fl[d * _L + l]
+            fe[e, d] = x
+            t = bdof[r, d]
+            if t >= 0:
+                f_out[t] += x
+            else:
+                fbuf[-t - 1] = x
         if tangent:
             for d in range(nd):
-                a, i = d // 2, d % 2
                 for d2 in range(nd):
-                    k = ((d2 // 2 * nen + a) * 4 + 2 * i + d2 % 2) * _L + l
-                    data[pos[e, d, d2]] += Ke[k]
+                    t = bpos[r, d, d2]
+                    if t >= 0:
+                        data[t] += Ke[_ke_at(d, d2, nen, l)]
+                    else:
+                        kbuf[-t - 1] = Ke[_ke_at(d, d2, nen, l)]
 
 
 @njit(**_JIT)
@@ -785,13 +839,151 @@ def _point_law(e, q, kind, lp, Del, eps, eps_e_n, peeq_n, eps_e_out, peeq_out, s
 # --------------------------------------------------------------------------------------------
 # entry points (counted: a test of a fast path proves the fast path ran)
 
-def solid_group(*args) -> None:
-    """:func:`_solid_kernel` (the arguments are its own)."""
+def solid_group(*args, split: "Split | None" = None) -> None:
+    """:func:`_solid_kernel` (the arguments are its own but the trailing ``defer``): on one
+    thread, or on the ranges of ``split``, one thread each (the same bytes)."""
     calls["solid"] += 1
-    _solid_kernel(*args)
+    if split is None:
+        _solid_kernel(*args, NO_DEFER)
+    else:
+        calls["solid_split"] += 1
+        split.run(args)
 
 
 def start_group(*args) -> None:
     """:func:`_start_kernel` (the arguments are its own)."""
     calls["solid_start"] += 1
     _start_kernel(*args)
+
+
+# --------------------------------------------------------------------------------------------
+# element ranges on threads, bit for bit with one thread
+
+#: ``defer`` of the one-thread kernel: no boundary rows, every contribution straight in
+NO_DEFER = (np.empty(0, np.int64), np.empty((0, 0), np.int64), np.empty((0, 0, 0), np.int64),
+            np.empty(0), np.empty(0))
+
+#: :func:`_solid_kernel`'s arguments (but ``defer``), and those with a leading element axis:
+#: a range runs on their slices (C-contiguous views, the one compiled signature)
+_ARGS = ("nlgeom", "tangent", "axisym", "kind", "lp", "Del", "conn", "u_new", "u_old", "Nq",
+         "dNdX", "R0", "w0", "eps_e_n", "peeq_n", "old", "bad_old", "eps_e_out", "peeq_out",
+         "stress_out", "fe", "flags", "data", "f_out", "pos", "dofs", "scratch")
+_PER_ELEMENT = tuple(i for i, name in enumerate(_ARGS) if name in (
+    "conn", "dNdX", "R0", "w0", "eps_e_n", "peeq_n", "old", "bad_old", "eps_e_out", "peeq_out",
+    "stress_out", "fe", "flags", "pos", "dofs"))
+_FLAGS, _DATA, _F_OUT, _SCRATCH = (_ARGS.index(n) for n in ("flags", "data", "f_out", "scratch"))
+
+
+class _Deferred:
+    """What one range after the first defers, for :func:`_scatter_deferred`: ``defer`` (its
+    trailing kernel argument: ``brow`` (e,) the element's row in ``bdof`` (k, d) / ``bpos``
+    (k, d, d) or -1 inside the range, there an entry's index or ``-1 - slot``, and the buffers
+    ``fbuf`` / ``kbuf``), and for each buffer the waves that add it: (slots, their element,
+    their entry), each entry at most once per wave, the waves in the slots' order."""
+
+    def __init__(self, dofs, pos, seen_f, seen_k):
+        shared = seen_f[dofs]                                   # (e, d)
+        rows = np.flatnonzero(shared.any(axis=1))
+        brow = np.full(len(dofs), -1, np.int64)
+        brow[rows] = np.arange(len(rows))
+        # an entry an earlier range touches is a DOF it touches too (the entry's row DOF):
+        # the rows of shared DOFs hold every shared entry
+        bdof, self.f_waves = self._codes(dofs[rows], shared[rows], rows)
+        if pos.size:
+            p = pos[rows]
+            bpos, self.k_waves = self._codes(p, seen_k[p], rows)
+        else:
+            bpos, self.k_waves = NO_DEFER[2], []
+        self.defer = (brow, bdof, bpos, np.zeros(-int(bdof.min(initial=0))),
+                      np.zeros(-int(bpos.min(initial=0))))
+
+    @staticmethod
+    def _codes(to, shared, rows):
+        """``to`` (int64) with its shared entries replaced by ``-1 - slot`` (slots in C order,
+        the scatter's), and the waves adding the slots back."""
+        codes = to.astype(np.int64)
+        n = int(shared.sum())
+        target = codes[shared]
+        element = np.repeat(rows, shared.sum(axis=tuple(range(1, shared.ndim))))
+        codes[shared] = -1 - np.arange(n)
+        # the rank of each slot among those of its entry: wave w holds the w-th of each entry
+        order = np.argsort(target, kind="stable")
+        first = np.r_[True, target[order][1:] != target[order][:-1]]
+        start = np.maximum.accumulate(np.where(first, np.arange(n), 0))
+        rank = np.empty(n, np.int64)
+        rank[order] = np.arange(n) - start
+        waves = []
+        for w in range(int(rank.max(initial=-1)) + 1):
+            slots = np.flatnonzero(rank == w)
+            waves.append((slots, element[slots], target[slots]))
+        return codes, waves
+
+    def add(self, tangent, flags, f_out, data) -> None:
+        """The deferred contributions into ``f_out`` (and ``data``), wave by wave; a BAD_DET_F
+        element's slots (not written by this call: they hold an earlier call's) left out."""
+        parts = [(self.f_waves, self.defer[3], f_out)]
+        if tangent:
+            parts.append((self.k_waves, self.defer[4], data))
+        for waves, buf, out in parts:
+            for slots, element, target in waves:
+                ok = flags[element] != BAD_DET_F
+                out[target[ok]] += buf[slots[ok]]
+
+
+class Split:
+    """One group's elements in contiguous ranges, one thread each, summing every entry of
+    ``data`` and ``f_out`` as the one-thread kernel does, in its order.
+
+    The range bounds are multiples of ``LANES``.  An entry only one range touches is that
+    thread's alone.  An entry several touch ("shared") is summed directly by the first of them,
+    complete once its thread is joined; each later range writes its contributions to that
+    entry, in order, to a buffer (:func:`_scatter_deferred`) added after the join, range after
+    range.  Built from the group's ``dofs`` (e, d) and pattern positions ``pos`` (e, d, d), once
+    per pattern; ``workers`` runs the ranges after the first (the caller's thread runs the
+    first)."""
+
+    def __init__(self, dofs, pos, parts: int, workers):
+        ne = len(dofs)
+        cuts = np.round(np.arange(1, parts) * ne / parts / LANES).astype(np.int64) * LANES
+        self.bounds = np.unique(np.r_[0, np.clip(cuts, 0, ne), ne])
+        self.workers = workers
+        seen_f = np.zeros(int(dofs.max(initial=0)) + 1, bool)
+        seen_k = np.zeros(int(pos.max(initial=0)) + 1 if pos.size else 0, bool)
+        self.deferred = []
+        for j, (lo, hi) in enumerate(zip(self.bounds[:-1], self.bounds[1:])):
+            d, p = dofs[lo:hi], pos[lo:hi]
+            if j:
+                self.deferred.append(_Deferred(d, p, seen_f, seen_k))
+            seen_f[d] = True
+            seen_k[p] = True
+
+    @property
+    def ranges(self) -> list[tuple[int, int]]:
+        return [(int(lo), int(hi)) for lo, hi in zip(self.bounds[:-1], self.bounds[1:])]
+
+    def run(self, args) -> None:
+        """:func:`_solid_kernel` on every range (``args`` its own but ``defer``), the deferred
+        contributions added after."""
+        nen, nq = args[_ARGS.index("conn")].shape[1], args[_ARGS.index("Nq")].shape[0]
+        ranges = self.ranges
+        futures = []
+        try:
+            for (lo, hi), deferred in zip(ranges[1:], self.deferred):
+                futures.append(self.workers.submit(
+                    _solid_kernel, *self._slice(args, lo, hi, scratch_arrays(nen, nq)),
+                    deferred.defer))
+            _solid_kernel(*self._slice(args, *ranges[0], args[_SCRATCH]), NO_DEFER)
+        finally:
+            for f in futures:             # no thread left writing when this returns
+                f.result()
+        tangent, flags = args[1], args[_FLAGS]
+        for (lo, hi), deferred in zip(ranges[1:], self.deferred):
+            deferred.add(tangent, flags[lo:hi], args[_F_OUT], args[_DATA])
+
+    @staticmethod
+    def _slice(args, lo, hi, scratch):
+        out = list(args)
+        for i in _PER_ELEMENT:
+            out[i] = args[i][lo:hi]
+        out[_SCRATCH] = scratch
+        return out
