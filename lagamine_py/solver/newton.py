@@ -8,7 +8,11 @@ Convergence (tolerances from ``*CONTROLS``, defaults in :mod:`lagamine_py.solver
   small fraction of the largest scale of earlier increments (unloading to zero);
 * energy: ``|du_f . r_f| <= ETOL * (same at the first iteration)``, ``r_f`` the right-hand side
   that produced ``du_f``.  It is an *alternative* test: it lets an increment whose force scale
-  degenerates still converge; as ``energy ~ |R|^2`` it is as strict as the force test.
+  degenerates still converge; as ``energy ~ |R|^2`` it is as strict as the force test.  The
+  first iteration's energy is floored, as the force scale is, by a small fraction of the largest
+  of earlier increments (``energy_floor``): in an increment where nothing moves a stress-free
+  body's forces and energies are all round-off, and round-off compared with round-off never
+  converged (a body lifted off its foundation by imposed motions, then held: exit 3).
 
 Divergence: a residual above ``DIVERGED_REL``, or one that grew over three iterations and is
 above the first.  With ``*CONTROLS SDI=YES`` (the default) the growth verdict is not given
@@ -82,6 +86,8 @@ SDI_GROWTH_LIMIT = 6
 #: of sliding, robust")
 RATE_GRACE = 3
 FLOOR_FRACTION = 1e-6        # floor of the force scale, times the largest earlier scale
+#: floor of the energy test's reference, times the largest earlier one (energy ~ force^2)
+ENERGY_FLOOR_FRACTION = FLOOR_FRACTION ** 2
 
 
 @dataclass
@@ -162,13 +168,15 @@ class Converged:
     history: list[float] = field(default_factory=list)
     f_ext: np.ndarray | None = None  # set by the step controller: loads of the increment
     ctx: Any = None                  # and its StepContext
+    energy_scale: float = 0.0        # the energy test's reference (first iteration), floored
     factorisations: int = 0          # of the tangent, over the solves (FactorReuse)
     back_substitutions: int = 0
 
 
 def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict], ctx,
                     u_c: np.ndarray, f_ext: np.ndarray, settings: Settings,
-                    floor: float = 0.0, u_start: np.ndarray | None = None,
+                    floor: float = 0.0, energy_floor: float = 0.0,
+                    u_start: np.ndarray | None = None,
                     predicted: np.ndarray | None = None,
                     observers: tuple[IterationObserver, ...] = (),
                     solves: FactorReuse | None = None) -> Converged:
@@ -187,6 +195,7 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     u_c : (c,) imposed values at the end of the increment, at ``free.constrained``.
     f_ext : (ndof,) external nodal forces at the end of the increment.
     floor : absolute floor of the force scale.
+    energy_floor : absolute floor of the energy test's reference.
     u_start : (ndof,) first iterate (:func:`lagamine_py.solver.predictor.first_iterate`),
         default ``u_old``.  Its constrained entries are corrected to ``u_c`` by the first
         iteration like any imposed increment.
@@ -201,7 +210,7 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     s0 = solves.solves
     try:
         conv = _newton(problem, solves, free, u_old, states, ctx, u_c, f_ext, settings, floor,
-                       u_start, predicted, observers)
+                       energy_floor, u_start, predicted, observers)
     except ConvergenceFailure as exc:
         exc.solves = solves.solves - s0          # the attempt's iterations
         raise
@@ -210,9 +219,14 @@ def solve_increment(problem, solver, free, u_old: np.ndarray, states: list[dict]
     return conv
 
 
-def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floor, u_start,
-            predicted, observers) -> Converged:
+def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floor,
+            energy_floor, u_start, predicted, observers) -> Converged:
     """The iterations of :func:`solve_increment`."""
+
+    def done_with(conv: Converged) -> Converged:
+        conv.energy_scale = energy0 or 0.0
+        return conv
+
     c = free.constrained
     u = np.array(u_old if u_start is None else u_start, float)
     du_imposed = np.zeros_like(u)
@@ -239,12 +253,12 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
         if not imposing and rel <= settings.rtol:
             if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged", k, rel)
-                return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
+                return done_with(Converged(u, ev.states, ev.f_int, solves, rel, scale, history))
             ev = None               # not alive through the review's evaluations
             done, ev, ctx_k = _review(problem, watch, u, u_old, states, ctx, f_ext, free,
                                       scale, settings.rtol, history, k, solves)
             if done is not None:
-                return done
+                return done_with(done)
             continue
         if k >= watch.limit and not _rate_grants(history, settings, k, watch.limit, watch,
                                                   ev.states):
@@ -274,7 +288,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
         du[free.free] = du_f        # free and constrained DOFs partition du: all of it set
         du[c] = du_imposed[c]
         if energy0 is None:
-            energy0 = max(energy, predicted_energy)
+            energy0 = max(energy, predicted_energy, energy_floor)
         elif energy <= settings.etol * energy0:
             # converged in energy: take this last (tiny) correction, states consistent with it
             u = u + du
@@ -285,7 +299,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
             history.append(rel)
             if not watch.active:
                 log.info("    iter %2d  |R|/F = %.3e  converged (energy)", k + 1, rel)
-                return Converged(u, ev.states, ev.f_int, solves, rel, scale, history)
+                return done_with(Converged(u, ev.states, ev.f_int, solves, rel, scale, history))
             # held values: the increment's own context must give the same (energy-converged)
             # residual
             ev = None
@@ -293,7 +307,7 @@ def _newton(problem, reuse, free, u_old, states, ctx, u_c, f_ext, settings, floo
                                       scale, max(settings.rtol, rel * (1.0 + 1e-6)), history,
                                       k + 1, solves)
             if done is not None:
-                return done
+                return done_with(done)
             continue
         ctx_k = watch.context(ctx, ev.states)
         if settings.linesearch and not imposing:

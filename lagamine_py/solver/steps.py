@@ -51,7 +51,7 @@ from .augmented import augmentation_limit, augmented_start
 from .energy import EnergyAccount
 from .linear import FreeDofs, make_solver
 from .loads import Reached, StepLoads, driving_loads, step_loads
-from .newton import FLOOR_FRACTION, Settings, solve_increment
+from .newton import ENERGY_FLOOR_FRACTION, FLOOR_FRACTION, Settings, solve_increment
 from .reuse import FactorReuse
 from .predictor import FrontPredictor, first_iterate, front_holds
 from .problem import (CONTACT, SOLID, Problem, alternation_advice, build_problem,
@@ -199,6 +199,7 @@ class Controller:
         self.reached = Reached()
         self.time_offset = 0.0            # total time at the start of the current step
         self.force_ref = 0.0              # largest force scale of converged increments
+        self.energy_ref = 0.0             # largest energy reference of converged increments
         self.total_increments = 0
         self.surfaces = dload_surfaces(model)
         self.foundations = list(model.foundations)
@@ -519,7 +520,9 @@ class Controller:
                 with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
                     trial = solve_increment(
                         problem, solver, free, self.u, states, ctx, u_c, f_ext, settings,
-                        floor=FLOOR_FRACTION * self.force_ref, u_start=start, predicted=predicted,
+                        floor=FLOOR_FRACTION * self.force_ref,
+                        energy_floor=ENERGY_FLOOR_FRACTION * self.energy_ref,
+                        u_start=start, predicted=predicted,
                         observers=(fronts, FlipFlop(watched, int(controls["FLIPFLOP"]))),
                         solves=self._solves)
             except ConvergenceFailure as exc:
@@ -561,6 +564,7 @@ class Controller:
         c = free.constrained
         self.reaction[c] = (conv.f_int - conv.f_ext)[c]
         self.force_ref = max(self.force_ref, conv.scale)
+        self.energy_ref = max(self.energy_ref, conv.energy_scale)
         self.total_increments += 1
 
     # -- output ----------------------------------------------------------------------------
@@ -691,6 +695,7 @@ class Controller:
                 "inc": np.array(state["inc"]),
                 "total_increments": np.array(self.total_increments),
                 "time_offset": np.array(self.time_offset), "force_ref": np.array(self.force_ref),
+                "energy_ref": np.array(self.energy_ref),
                 "u": self.u, "reaction": self.reaction}
         if last is not None:            # the predictor of the next increment, for a same-path resume
             data["last_du"], data["last_dt"] = last[0], np.array(last[1])
@@ -724,6 +729,8 @@ class Controller:
         self.total_increments = int(data["total_increments"])
         self.time_offset = float(data["time_offset"])
         self.force_ref = float(data["force_ref"])
+        # absent from the restart files of earlier versions: no floor, as those runs had
+        self.energy_ref = float(data["energy_ref"]) if "energy_ref" in data else 0.0
         if self.energy is not None:
             self.energy.from_arrays(data)
         loads = StepLoads.from_arrays(data)
