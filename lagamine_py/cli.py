@@ -295,8 +295,13 @@ def _long_lived():
 
 
 def _cmd_run(args) -> int:
-    from .core.threads import pin_openblas_at_load
+    from .core.threads import kernel_threads, pin_openblas_at_load
     from .core.lazy_modules import defer_numpy_submodules
+    try:
+        kernel_threads()                    # a bad LAGAMINE_THREADS said before anything runs
+    except ValueError as exc:
+        print(f"lagamine-py run: {exc}; nothing was run", file=sys.stderr)
+        return EXIT_DECK
     pin_openblas_at_load()                  # before numpy loads: no threadpoolctl needed
     with _long_lived():
         defer_numpy_submodules()            # before scipy.sparse clones numpy's namespace

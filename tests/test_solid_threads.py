@@ -14,6 +14,7 @@ with the split on and off."""
 from __future__ import annotations
 
 from concurrent.futures import Future
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -202,3 +203,16 @@ def test_press_slide_every_output_byte_the_same_split_or_not(tmp_path, monkeypat
     assert texts["1"].keys() == texts["2"].keys() and len(texts["1"]) >= 3
     for name, text in texts["1"].items():
         assert text == texts["2"][name], name
+
+
+def test_a_bad_thread_count_stops_run_before_anything_runs(tmp_path, monkeypatch, capsys):
+    """LAGAMINE_THREADS=yes is said at once (exit 2, nothing written), not as "an unexpected
+    error" at the first large group's evaluation, after earlier increments had run."""
+    from lagamine_py.cli import main
+    monkeypatch.setenv("LAGAMINE_THREADS", "yes")
+    out = tmp_path / "out"
+    deck = Path(__file__).resolve().parents[1] / "decks" / "coulomb_block.dat"
+    assert main(["run", str(deck), "-o", str(out), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "LAGAMINE_THREADS='yes': expected a count (1, 2, ...) or off; nothing was run" in err
+    assert not out.exists()
