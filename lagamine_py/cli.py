@@ -174,6 +174,8 @@ def _load(deck: Path, params: list[str] = ()):
 
 
 def _cmd_check(args) -> int:
+    if not _thread_setting_ok("check"):
+        return EXIT_DECK
     model = _load(args.deck, args.param)
     if model is None:
         return EXIT_DECK
@@ -294,13 +296,22 @@ def _long_lived():
             gc.enable()
 
 
-def _cmd_run(args) -> int:
-    from .core.threads import kernel_threads, pin_openblas_at_load
-    from .core.lazy_modules import defer_numpy_submodules
+def _thread_setting_ok(command: str) -> bool:
+    """``LAGAMINE_THREADS`` is a count or off; else the one message, for ``run`` and ``check``
+    alike (``check`` refuses what ``run`` would)."""
+    from .core.threads import kernel_threads
     try:
-        kernel_threads()                    # a bad LAGAMINE_THREADS said before anything runs
+        kernel_threads()
     except ValueError as exc:
-        print(f"lagamine-py run: {exc}; nothing was run", file=sys.stderr)
+        print(f"lagamine-py {command}: {exc}; nothing was run", file=sys.stderr)
+        return False
+    return True
+
+
+def _cmd_run(args) -> int:
+    from .core.threads import pin_openblas_at_load
+    from .core.lazy_modules import defer_numpy_submodules
+    if not _thread_setting_ok("run"):       # said before anything runs
         return EXIT_DECK
     pin_openblas_at_load()                  # before numpy loads: no threadpoolctl needed
     with _long_lived():

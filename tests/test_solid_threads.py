@@ -216,3 +216,5 @@ def test_a_bad_thread_count_stops_run_before_anything_runs(tmp_path, monkeypatch
     err = capsys.readouterr().err
     assert "LAGAMINE_THREADS='yes': expected a count (1, 2, ...) or off; nothing was run" in err
     assert not out.exists()
+    assert main(["check", str(deck)]) == 2                  # check refuses what run refuses
+    assert "LAGAMINE_THREADS='yes'" in capsys.readouterr().err
