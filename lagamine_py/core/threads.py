@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import os
 import sys
-from concurrent.futures import ThreadPoolExecutor
 
 #: the solid kernel's threads when neither LAGAMINE_THREADS nor OMP_NUM_THREADS says: one, as
 #: CalculiX without OMP_NUM_THREADS (two measured no faster on the loaded 2-core machine of
@@ -37,7 +36,7 @@ DEFAULT_KERNEL_THREADS = 1
 #: what the split saves (docs/performance.md, "The solid kernel on two threads")
 SPLIT_ELEMENTS = 2048
 
-_pool: ThreadPoolExecutor | None = None
+_pool = None          # the ThreadPoolExecutor of worker_pool, started on first use
 
 #: set by :func:`pin_openblas_at_load` when the environment did the pinning
 _pinned_at_load = False
@@ -122,11 +121,14 @@ def split_parts(elements: int, threads: int | None = None,
     return max(1, min(threads, elements // max(1, per_thread)))
 
 
-def worker_pool() -> ThreadPoolExecutor:
-    """The process's worker threads for kernel ranges (started on first use, kept; the
-    caller's own thread runs a first range, so ``kernel_threads() - 1`` workers)."""
+def worker_pool():
+    """The process's worker threads for kernel ranges, a ``ThreadPoolExecutor`` (started on
+    first use, kept; the caller's own thread runs a first range, so ``kernel_threads() - 1``
+    workers).  ``concurrent.futures`` is imported here, not with the module: a run on one
+    thread (the default) does not pay its import (~5-10 ms of the main job's start-up)."""
     global _pool
     if _pool is None:
+        from concurrent.futures import ThreadPoolExecutor
         _pool = ThreadPoolExecutor(max_workers=max(1, available_cores() - 1),
                                    thread_name_prefix="lagamine-kernel")
     return _pool
